@@ -1,0 +1,82 @@
+"""The interface every draping method implements, and the records it returns."""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+import torch
+
+
+@dataclass
+class DrapeResult:
+    """Output of :meth:`DrapingMethod.drape`.
+
+    vertices: (T, V, 3) draped garment vertices in metres, one row per sequence frame.
+    timings_ms: per-stage wall time in milliseconds for the whole sequence (e.g. {"network": .., "skinning": ..}).
+    """
+
+    vertices: torch.Tensor
+    timings_ms: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def total_ms(self) -> float:
+        return float(sum(self.timings_ms.values()))
+
+
+@dataclass
+class FitReport:
+    """Summary of :meth:`DrapingMethod.fit`: wall time (s), optimisation steps, last loss terms,
+    per-epoch loss history and whether training was skipped because a checkpoint was loaded."""
+
+    train_s: float = 0.0
+    n_steps: int = 0
+    final_losses: dict[str, float] = field(default_factory=dict)
+    history: list[dict[str, float]] = field(default_factory=list)
+    resumed_from: str | None = None
+
+
+class DrapingMethod(ABC):
+    """A garment-draping method behind one interface.
+
+    Lifecycle: ``m = methods.get(name)(cfg)``; ``m.fit(data, train_cfg)`` (trains, or only binds the
+    body/material for methods with nothing to learn); ``m.drape(garment, seq)`` for inference.
+    ``state_dict`` / ``load_state_dict`` hold everything needed to drape again without ``fit``
+    (the pipeline binds the body/material first with :meth:`bind`).
+    """
+
+    name: str = "base"
+    generic: bool = False  # one model for any garment (True) vs one model per garment
+    needs_reference: bool = False  # trains on physics-based reference drapes
+
+    def __init__(self, cfg: Mapping[str, Any] | None = None) -> None:
+        self.cfg = dict(cfg or {})
+        self.body = None
+        self.material = None
+
+    def bind(self, body, material) -> None:
+        """Attach the body model and material the method drapes on (called by ``fit`` and the pipeline)."""
+        self.body = body
+        self.material = material
+
+    def _require_bound(self) -> None:
+        if self.body is None or self.material is None:
+            raise RuntimeError(f"{self.name}: call fit(data, ...) or bind(body, material) before drape()")
+
+    @abstractmethod
+    def fit(self, data, train_cfg: Mapping[str, Any] | None = None) -> FitReport:
+        """Train on ``data`` (a :class:`drapebench.store.TrainData`); returns a :class:`FitReport`."""
+
+    @abstractmethod
+    def drape(self, garment, seq) -> DrapeResult:
+        """Drape ``garment`` over body sequence ``seq``; inference only, returns (T, V, 3) vertices."""
+
+    def state_dict(self) -> dict[str, Any]:
+        """Learned state (tensors and plain values); empty for methods with nothing to learn."""
+        return {}
+
+    def load_state_dict(self, state: Mapping[str, Any]) -> None:
+        """Restore what :meth:`state_dict` returned."""
+        if state:
+            raise ValueError(f"{self.name} has no learned state, got keys {sorted(state)}")
