@@ -1,0 +1,254 @@
+"""Procedural, seeded body motions for the 22-joint skeleton.
+
+Every motion is a smooth function of time (sums of sinusoids and Gaussian bumps), so poses and the
+root translation have bounded finite-difference acceleration. Joint angles are passed through a
+smooth soft limit (identity inside the range, exponential approach within 5 % of either end) so
+they never leave :data:`drapebench.body.limits.JOINT_LIMITS`. A sequence may begin with a
+transition: a C2 envelope (quintic smoothstep) scales the whole motion from the rest pose
+(``pose = 0``, ``trans = 0``) to full amplitude, so velocity and acceleration stay continuous.
+
+The seed varies amplitude (+-15 %), cadence (+-10 %) and phase; ``amplitude``, ``cadence`` (Hz),
+``speed`` (m/s) and motion-specific parameters override the defaults.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from drapebench.body.bake import JOINT_NAMES
+from drapebench.body.limits import JOINT_LIMITS
+
+MOTIONS = ("walk", "run", "jump", "arm_raise", "squat", "twist", "kick", "dance", "static", "stress")
+J = {name: i for i, name in enumerate(JOINT_NAMES)}
+X, Y, Z = 0, 1, 2
+THIGH, SHIN = 0.45, 0.45  # metres; approximate leg segment lengths for pelvis-height compensation
+
+
+def smoothstep(u: np.ndarray) -> np.ndarray:
+    """Quintic smoothstep on [0, 1] (C2: zero first and second derivative at both ends)."""
+    u = np.clip(u, 0.0, 1.0)
+    return u * u * u * (u * (6.0 * u - 15.0) + 10.0)
+
+
+def soft_limit(x: np.ndarray, lo: np.ndarray, hi: np.ndarray, margin: float = 0.05) -> np.ndarray:
+    """Identity inside ``[lo + d, hi - d]`` (d = margin x range), C1 exponential approach beyond; never leaves [lo, hi]."""
+    d = margin * (hi - lo)
+    a, b = lo + d, hi - d
+    out = np.where(x > b, hi - d * np.exp(-(x - b) / d), x)
+    return np.where(x < a, lo + d * np.exp(-(a - x) / d), out)
+
+
+def _bump(u: np.ndarray, centre: float, width: float) -> np.ndarray:
+    """Periodic Gaussian bump on the unit cycle u in [0, 1)."""
+    w = (u - centre + 0.5) % 1.0 - 0.5
+    return np.exp(-((w / width) ** 2))
+
+
+def _leg_drop(hip_flex: np.ndarray, knee_flex: np.ndarray) -> np.ndarray:
+    """Pelvis drop (m) when thighs flex forward by ``hip_flex`` and knees by ``knee_flex`` (radians, >= 0) with feet planted."""
+    return THIGH + SHIN - (THIGH * np.cos(hip_flex) + SHIN * np.cos(knee_flex - hip_flex))
+
+
+class _Motion:
+    """Per-frame pose (T, 22, 3), root velocity (T, 3) and vertical offset (T,) under construction."""
+
+    def __init__(self, t: np.ndarray):
+        self.t = t
+        self.pose = np.zeros((len(t), len(JOINT_NAMES), 3))
+        self.velocity = np.zeros((len(t), 3))
+        self.z = np.zeros(len(t))
+
+    def set(self, joint: str, axis: int, value) -> None:
+        self.pose[:, J[joint], axis] = value
+
+    def both(self, part: str, axis: int, left, right=None, mirror: bool = False) -> None:
+        """Set left and right joints; ``mirror`` flips the sign for y/z axes of the right side."""
+        self.set(f"left_{part}", axis, left)
+        if right is None:
+            right = -np.asarray(left) if mirror else left
+        self.set(f"right_{part}", axis, right)
+
+
+def _walk_like(m, t, rng, a, f, speed, run: bool):
+    phi = 2 * np.pi * f * t + rng.uniform(0, 2 * np.pi)
+    s, hip_amp = np.sin(phi), (0.65 if run else 0.4) * a
+    m.both("hip", X, -0.05 - hip_amp * s, -0.05 + hip_amp * s)
+    knee0, knee_amp = (0.3, 1.2) if run else (0.08, 0.6)
+    bump_l, bump_r = ((1 + np.cos(phi)) / 2) ** 2, ((1 - np.cos(phi)) / 2) ** 2
+    m.both("knee", X, knee0 + knee_amp * a * bump_l, knee0 + knee_amp * a * bump_r)
+    m.both("ankle", X, -0.12 * a * s, 0.12 * a * s)
+    m.both("shoulder", X, (0.6 if run else 0.3) * a * s, -(0.6 if run else 0.3) * a * s)
+    m.both("shoulder", Y, 0.4, mirror=True)
+    elbow = -1.4 if run else -0.25
+    m.both("elbow", X, elbow - 0.15 * a * (1 + s) / 2, elbow - 0.15 * a * (1 - s) / 2)
+    m.set("pelvis", Z, 0.08 * a * s)
+    m.set("spine1", Z, -0.06 * a * s)
+    m.set("spine1", X, 0.15 if run else 0.03)
+    m.velocity[:, 1] = -speed
+    m.z[:] = (0.04 if run else 0.015) * a * np.cos(2 * phi)
+
+
+def _jump(m, t, rng, a, f, height):
+    u = (f * t + rng.uniform(0, 0.2)) % 1.0
+    crouch = _bump(u, 0.3, 0.09) + 0.6 * _bump(u, 0.85, 0.06)
+    flight = _bump(u, 0.57, 0.08)
+    hip, knee = 1.0 * a * crouch, 1.7 * a * crouch
+    m.both("hip", X, -hip)
+    m.both("knee", X, knee)
+    m.both("ankle", X, -0.45 * a * crouch + 0.5 * flight)
+    m.set("spine1", X, 0.3 * a * crouch)
+    m.both("shoulder", X, 0.5 * crouch - 1.3 * a * flight)
+    m.both("shoulder", Y, 0.3, mirror=True)
+    m.both("elbow", X, -0.3)
+    m.z[:] = -_leg_drop(hip, knee) + height * a * flight
+
+
+def _arm_raise(m, t, rng, a, f, mode):
+    r = (1 - np.cos(2 * np.pi * f * t + rng.uniform(-0.3, 0.3))) / 2
+    if mode == "side":
+        m.both("shoulder", Y, -1.9 * a * r, mirror=True)
+        m.both("collar", Y, -0.2 * a * r, mirror=True)
+    else:
+        m.both("shoulder", X, -1.8 * a * r)
+    m.both("elbow", X, -0.15)
+
+
+def _squat(m, t, rng, a, f):
+    r = (1 - np.cos(2 * np.pi * f * t + rng.uniform(-0.3, 0.3))) / 2
+    hip, knee = 1.5 * a * r, 1.9 * a * r
+    m.both("hip", X, -hip)
+    m.both("knee", X, knee)
+    m.both("ankle", X, -(knee - hip))
+    m.set("spine1", X, 0.35 * a * r)
+    m.both("shoulder", X, -1.0 * a * r)
+    m.z[:] = -_leg_drop(hip, knee)
+
+
+def _twist(m, t, rng, a, f):
+    s = np.sin(2 * np.pi * f * t + rng.uniform(0, 2 * np.pi))
+    for j in ("spine1", "spine2", "spine3"):
+        m.set(j, Z, 0.3 * a * s)
+    m.set("pelvis", Z, 0.15 * a * s)
+    m.set("neck", Z, -0.3 * a * s)
+    m.both("shoulder", Y, -0.7, mirror=True)
+    m.both("elbow", X, -0.3)
+
+
+def _kick(m, t, rng, a, f, side):
+    u = (f * t + rng.uniform(0, 0.1)) % 1.0
+    kick, windup = _bump(u, 0.5, 0.1), _bump(u, 0.4, 0.08)
+    other = "left" if side == "right" else "right"
+    m.set(f"{side}_hip", X, -1.4 * a * kick + 0.3 * windup)
+    m.set(f"{side}_knee", X, 0.2 + 1.2 * windup + 0.2 * kick)
+    m.set(f"{side}_ankle", X, 0.4 * kick)
+    m.set(f"{other}_knee", X, 0.15 * kick)
+    m.set(f"{other}_shoulder", X, -0.7 * a * kick)
+    m.set(f"{side}_shoulder", X, 0.4 * a * kick)
+    m.both("shoulder", Y, 0.2, mirror=True)
+    m.set("spine1", X, -0.15 * a * kick)
+
+
+def _random_smooth(m, t, rng, a, freq_range, reach, joints, n_harmonics=3):
+    """Each joint axis: centre inside the limits plus a few random sinusoids; ``reach`` is the fraction of the half-range used."""
+    for name in joints:
+        j = J[name]
+        for axis in range(3):
+            lo, hi = JOINT_LIMITS[j, axis]
+            mid, half = (lo + hi) / 2, (hi - lo) / 2
+            centre = mid + rng.uniform(-0.3, 0.3) * half
+            amps = rng.dirichlet(np.ones(n_harmonics)) * reach * a * (half - abs(centre - mid))
+            freqs = rng.uniform(*freq_range, n_harmonics)
+            phases = rng.uniform(0, 2 * np.pi, n_harmonics)
+            m.pose[:, j, axis] = centre + (amps * np.sin(2 * np.pi * freqs * t[:, None] + phases)).sum(-1)
+
+
+_DANCE_JOINTS = ("spine1", "spine2", "spine3", "neck", "head", "left_collar", "right_collar",
+                 "left_shoulder", "right_shoulder", "left_elbow", "right_elbow", "left_wrist",
+                 "right_wrist", "left_hip", "right_hip", "left_knee", "right_knee")  # fmt: skip
+
+
+def _dance(m, t, rng, a, f):
+    _random_smooth(m, t, rng, a, (0.3 * f, 1.2 * f), 0.4, _DANCE_JOINTS)
+    m.set("pelvis", Z, 0.5 * a * np.sin(2 * np.pi * 0.2 * f * t + rng.uniform(0, 2 * np.pi)))
+    sway = rng.uniform(0, 2 * np.pi, 2)
+    m.velocity[:, 0] = 0.25 * a * np.sin(2 * np.pi * 0.5 * f * t + sway[0])
+    m.velocity[:, 1] = 0.25 * a * np.sin(2 * np.pi * 0.4 * f * t + sway[1])
+    knee = m.pose[:, J["left_knee"], X].clip(0)
+    m.z[:] = -_leg_drop(np.zeros_like(knee), knee) * 0.5
+
+
+def _static(m, t, rng, a):
+    held = _Motion(np.zeros(1))
+    _random_smooth(held, np.zeros(1), rng, a, (0.0, 0.0), 0.15, JOINT_NAMES[1:], n_harmonics=1)
+    m.pose[:] = held.pose[0]
+
+
+def _stress(m, t, rng, a, f):
+    _random_smooth(m, t, rng, a, (0.75 * f, 1.25 * f), 0.9, JOINT_NAMES[1:], n_harmonics=2)
+    m.set("pelvis", Z, 1.0 * a * np.sin(2 * np.pi * 0.5 * f * t))
+    m.velocity[:, 0] = 1.0 * a * np.sin(2 * np.pi * 0.5 * f * t)
+
+
+# name -> (builder, default parameters). ``amplitude`` scales angles, ``cadence`` is the cycle frequency (Hz).
+_SPECS = {
+    "walk": (lambda m, t, r, p: _walk_like(m, t, r, p["amplitude"], p["cadence"], p["speed"], False),
+             dict(amplitude=1.0, cadence=0.9, speed=1.2)),
+    "run": (lambda m, t, r, p: _walk_like(m, t, r, p["amplitude"], p["cadence"], p["speed"], True),
+            dict(amplitude=1.0, cadence=1.4, speed=3.0)),
+    "jump": (lambda m, t, r, p: _jump(m, t, r, p["amplitude"], p["cadence"], p["height"]),
+             dict(amplitude=1.0, cadence=0.8, height=0.3)),
+    "arm_raise": (lambda m, t, r, p: _arm_raise(m, t, r, p["amplitude"], p["cadence"], p["mode"]),
+                  dict(amplitude=1.0, cadence=0.4, mode="side")),
+    "squat": (lambda m, t, r, p: _squat(m, t, r, p["amplitude"], p["cadence"]), dict(amplitude=1.0, cadence=0.4)),
+    "twist": (lambda m, t, r, p: _twist(m, t, r, p["amplitude"], p["cadence"]), dict(amplitude=1.0, cadence=0.5)),
+    "kick": (lambda m, t, r, p: _kick(m, t, r, p["amplitude"], p["cadence"], p["side"]),
+             dict(amplitude=1.0, cadence=0.6, side="right")),
+    "dance": (lambda m, t, r, p: _dance(m, t, r, p["amplitude"], p["cadence"]), dict(amplitude=1.0, cadence=1.0)),
+    "static": (lambda m, t, r, p: _static(m, t, r, p["amplitude"]), dict(amplitude=1.0)),
+    "stress": (lambda m, t, r, p: _stress(m, t, r, p["amplitude"], p["cadence"]), dict(amplitude=1.0, cadence=2.0)),
+}  # fmt: skip
+
+
+def motion_defaults(motion: str) -> dict:
+    """Default parameters of a motion (a copy)."""
+    _check_motion(motion)
+    return dict(_SPECS[motion][1])
+
+
+def _check_motion(motion: str) -> None:
+    if motion not in _SPECS:
+        raise ValueError(f"unknown motion {motion!r}; valid motions: {', '.join(MOTIONS)}")
+
+
+def generate(motion: str, n_frames: int, fps: float, seed: int, transition: int = 0, **params):
+    """Poses (T, 22, 3) radians and root translation (T, 3) metres, T = transition + n_frames.
+
+    The first ``transition`` frames blend from the rest pose into the motion (C2 envelope).
+    """
+    _check_motion(motion)
+    if n_frames < 1 or transition < 0:
+        raise ValueError(f"n_frames must be >= 1 and transition >= 0, got {n_frames}, {transition}")
+    if not fps > 0:
+        raise ValueError(f"fps must be positive, got {fps}")
+    builder, defaults = _SPECS[motion]
+    unknown = set(params) - set(defaults)
+    if unknown:
+        raise ValueError(f"unknown parameter(s) {sorted(unknown)} for motion {motion!r}; valid: {sorted(defaults)}")
+    p = {**defaults, **params}
+    rng = np.random.default_rng(seed)
+    if "amplitude" in p:
+        p["amplitude"] = p["amplitude"] * rng.uniform(0.85, 1.15)
+    if "cadence" in p:
+        p["cadence"] = p["cadence"] * rng.uniform(0.9, 1.1)
+    T = transition + n_frames
+    t = np.arange(T) / fps
+    m = _Motion(t)
+    builder(m, t, rng, p)
+    lo, hi = JOINT_LIMITS[None, ..., 0], JOINT_LIMITS[None, ..., 1]
+    pose = soft_limit(m.pose, lo, hi)
+    envelope = smoothstep(t / (transition / fps)) if transition > 0 else np.ones(T)
+    pose = pose * envelope[:, None, None]
+    velocity = m.velocity * envelope[:, None]
+    trans = np.concatenate([np.zeros((1, 3)), np.cumsum(0.5 * (velocity[1:] + velocity[:-1]), 0) / fps])
+    trans[:, 2] += envelope * m.z
+    return pose.astype(np.float32), trans.astype(np.float32)

@@ -1,0 +1,173 @@
+"""BodySequence: a body shape and a pose/translation track, with posed geometry on demand and exact h5 I/O."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import h5py
+import numpy as np
+import torch
+
+from drapebench.body.model import BodyModel, BodyOutput
+from drapebench.body.motions import generate
+from drapebench.cache import atomic_write
+from drapebench.geometry.ops import vertex_normals
+
+DEFAULT_TRANSITION = 15  # frames (0.5 s at 30 fps) from the rest pose into the motion
+
+
+@dataclass
+class BodySequence:
+    """One body motion.
+
+    betas (S,) shape coefficients; poses (T, J, 3) axis-angle (radians); trans (T, 3) metres;
+    fps frames per second; ``n_transition`` leading frames blend from the rest pose into the motion.
+    Posed geometry (:meth:`vertices`, :meth:`vertex_normals`, ...) is computed once per body and
+    cached on the object.
+    """
+
+    name: str
+    motion: str
+    betas: torch.Tensor
+    poses: torch.Tensor
+    trans: torch.Tensor
+    fps: float = 30.0
+    seed: int = 0
+    split: str = "train"
+    n_transition: int = 0
+    params: dict = field(default_factory=dict)
+    _cache: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        self.betas = torch.as_tensor(self.betas, dtype=torch.float32).reshape(-1)
+        self.poses = torch.as_tensor(self.poses, dtype=torch.float32)
+        self.trans = torch.as_tensor(self.trans, dtype=torch.float32)
+        if self.poses.dim() != 3 or self.poses.shape[-1] != 3:
+            raise ValueError(f"{self.name}: poses must be (T, J, 3), got {tuple(self.poses.shape)}")
+        if self.trans.shape != (self.poses.shape[0], 3):
+            raise ValueError(f"{self.name}: trans must be ({self.poses.shape[0]}, 3), got {tuple(self.trans.shape)}")
+        for key in ("betas", "poses", "trans"):
+            if not torch.isfinite(getattr(self, key)).all():
+                raise ValueError(f"{self.name}: {key} contains NaN or Inf")
+        if not 0 <= self.n_transition <= self.poses.shape[0]:
+            raise ValueError(f"{self.name}: n_transition {self.n_transition} outside [0, {self.poses.shape[0]}]")
+
+    @property
+    def n_frames(self) -> int:
+        return self.poses.shape[0]
+
+    @property
+    def dt(self) -> float:
+        return 1.0 / self.fps
+
+    def body_output(self, body: BodyModel) -> BodyOutput:
+        """Posed body for every frame (cached per body and dtype): vertices (T,V,3), joints, transforms."""
+        key = ("out", id(body), body.name, body.dtype, str(body.device))
+        if key not in self._cache:
+            if self.poses.shape[1] != body.n_joints:
+                raise ValueError(
+                    f"{self.name}: poses have {self.poses.shape[1]} joints, body {body.name} has {body.n_joints}"
+                )
+            with torch.no_grad():
+                self._cache[key] = body.forward(
+                    self.betas[None, : body.n_betas].to(body.device, body.dtype),
+                    self.poses.to(body.device, body.dtype),
+                    self.trans.to(body.device, body.dtype),
+                )
+        return self._cache[key]
+
+    def vertices(self, body: BodyModel) -> torch.Tensor:
+        """Posed body vertices (T, V, 3)."""
+        return self.body_output(body).vertices
+
+    def vertex_normals(self, body: BodyModel) -> torch.Tensor:
+        """Area-weighted unit normals of the posed body (T, V, 3), cached."""
+        key = ("normals", id(body), body.name, body.dtype, str(body.device))
+        if key not in self._cache:
+            self._cache[key] = vertex_normals(self.vertices(body), body.faces)
+        return self._cache[key]
+
+    def joints(self, body: BodyModel) -> torch.Tensor:
+        """Posed joint positions (T, J, 3)."""
+        return self.body_output(body).joints
+
+    def transforms(self, body: BodyModel) -> torch.Tensor:
+        """Skinning transforms (T, J, 4, 4), translation included."""
+        return self.body_output(body).transforms
+
+    def slice(self, start: int, stop: int | None = None) -> "BodySequence":
+        """Frames [start, stop) as a new sequence (the transition count is clipped to what remains)."""
+        stop = self.n_frames if stop is None else stop
+        return BodySequence(
+            name=f"{self.name}[{start}:{stop}]", motion=self.motion, betas=self.betas,
+            poses=self.poses[start:stop], trans=self.trans[start:stop], fps=self.fps, seed=self.seed,
+            split=self.split, n_transition=max(0, min(self.n_transition - start, stop - start)), params=dict(self.params),
+        )  # fmt: skip
+
+    # ------------------------------------------------------------------ h5
+    def write_h5(self, group: h5py.Group) -> None:
+        """Write into an open h5 group (datasets betas/poses/trans, scalars as attributes)."""
+        for key in ("betas", "poses", "trans"):
+            group.create_dataset(key, data=getattr(self, key).numpy())
+        for key in ("name", "motion", "split"):
+            group.attrs[key] = getattr(self, key)
+        group.attrs["fps"] = float(self.fps)
+        group.attrs["seed"] = int(self.seed)
+        group.attrs["n_transition"] = int(self.n_transition)
+        group.attrs["params"] = json.dumps(self.params, sort_keys=True)
+
+    @classmethod
+    def read_h5(cls, group: h5py.Group) -> "BodySequence":
+        """Read what :meth:`write_h5` wrote."""
+        missing = [k for k in ("betas", "poses", "trans") if k not in group]
+        if missing:
+            raise ValueError(f"h5 group {group.name} is not a BodySequence: missing {missing}")
+        a = group.attrs
+        return cls(
+            name=str(a["name"]), motion=str(a["motion"]), betas=group["betas"][()], poses=group["poses"][()],
+            trans=group["trans"][()], fps=float(a["fps"]), seed=int(a["seed"]), split=str(a["split"]),
+            n_transition=int(a["n_transition"]), params=json.loads(a["params"]),
+        )  # fmt: skip
+
+    def save(self, path: str | Path) -> None:
+        """Write to an h5 file atomically."""
+        with atomic_write(path, mode=None) as tmp, h5py.File(tmp, "w") as f:
+            self.write_h5(f)
+
+    @classmethod
+    def load(cls, path: str | Path) -> "BodySequence":
+        """Read a file written by :meth:`save`."""
+        with h5py.File(path, "r") as f:
+            return cls.read_h5(f)
+
+
+def make_sequence(
+    motion: str,
+    n_frames: int = 90,
+    fps: float = 30.0,
+    seed: int = 0,
+    betas=None,
+    transition: int = DEFAULT_TRANSITION,
+    split: str = "train",
+    name: str | None = None,
+    **params,
+) -> BodySequence:
+    """A procedural motion (see :mod:`drapebench.body.motions`) as a :class:`BodySequence`.
+
+    Args:
+        motion: one of :data:`drapebench.body.motions.MOTIONS`.
+        n_frames: frames of the motion proper; the sequence has ``transition + n_frames`` frames.
+        fps: frame rate (Hz).
+        seed: seeds amplitude, cadence and phase variations (and random motions).
+        betas: (S,) body shape; None = mean shape (10 zeros).
+        transition: leading frames that blend from the rest pose into the motion.
+        **params: motion parameters (see ``motion_defaults(motion)``).
+    """
+    poses, trans = generate(motion, n_frames, fps, seed, transition, **params)
+    betas = torch.zeros(10) if betas is None else torch.as_tensor(betas, dtype=torch.float32)
+    return BodySequence(
+        name=name or f"{motion}_s{seed}", motion=motion, betas=betas, poses=torch.from_numpy(poses),
+        trans=torch.from_numpy(trans), fps=fps, seed=seed, split=split, n_transition=transition, params=dict(params),
+    )  # fmt: skip
