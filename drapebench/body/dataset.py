@@ -1,0 +1,147 @@
+"""Named datasets of body sequences with random body shapes, built once into ``data/datasets/<name>.h5``.
+
+``python -m drapebench.body.dataset train_small`` builds one (``--force`` rebuilds, ``--list`` shows
+the names). A file whose stored spec hash matches is reused; a file that fails its checksum or
+hash check is rebuilt. Held-out motion kinds (``kick`` and ``stress`` never appear in training
+sets) give a split by motion; seeds give a split within a motion.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from drapebench.body.motions import MOTIONS
+from drapebench.body.sequence import DEFAULT_TRANSITION, BodySequence, make_sequence
+from drapebench.cache import atomic_write, content_hash, data_dir
+from drapebench.progress import progress
+
+TRAIN_MOTIONS = ("walk", "run", "jump", "arm_raise", "squat", "twist", "dance")
+HELD_OUT_MOTIONS = tuple(m for m in MOTIONS if m not in TRAIN_MOTIONS and m != "static")
+
+
+@dataclass(frozen=True)
+class DatasetSpec:
+    """What a dataset holds: ``per_motion`` sequences of each motion, ``n_frames`` frames each
+    (plus ``transition``), seeds from ``seed``, body shapes ``betas ~ N(0, beta_sigma^2)`` clipped
+    to +-``beta_clip`` on the first ``n_shape_betas`` components (zero on the rest)."""
+
+    motions: tuple[str, ...]
+    per_motion: int
+    n_frames: int
+    split: str
+    seed: int = 0
+    fps: float = 30.0
+    transition: int = DEFAULT_TRANSITION
+    beta_sigma: float = 1.0
+    beta_clip: float = 2.0
+    n_shape_betas: int = 4
+    n_betas: int = 10
+    params: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        bad = [m for m in self.motions if m not in MOTIONS]
+        if bad:
+            raise ValueError(f"unknown motion(s) {bad}; valid motions: {', '.join(MOTIONS)}")
+
+    def hash(self) -> str:
+        return content_hash(asdict(self))
+
+
+DATASETS: dict[str, DatasetSpec] = {
+    "train_small": DatasetSpec(TRAIN_MOTIONS, per_motion=2, n_frames=90, split="train", seed=0),
+    "train": DatasetSpec(TRAIN_MOTIONS, per_motion=8, n_frames=150, split="train", seed=0),
+    "val": DatasetSpec(TRAIN_MOTIONS, per_motion=1, n_frames=120, split="val", seed=5000),
+    "test": DatasetSpec(("walk", "run", "jump", "dance") + HELD_OUT_MOTIONS[:1], per_motion=1, n_frames=120, split="test", seed=10000),
+    "test_heldout": DatasetSpec(HELD_OUT_MOTIONS, per_motion=2, n_frames=120, split="test", seed=20000),
+}
+
+
+def spec_sequences(spec: DatasetSpec) -> list[BodySequence]:
+    """Generate the sequences a spec describes (deterministic in ``spec.seed``)."""
+    rng = np.random.default_rng(spec.seed)
+    out = []
+    for motion in spec.motions:
+        for k in range(spec.per_motion):
+            seed = int(rng.integers(2**31))
+            betas = np.zeros(spec.n_betas, dtype=np.float32)
+            betas[: spec.n_shape_betas] = np.clip(rng.normal(0, spec.beta_sigma, spec.n_shape_betas), -spec.beta_clip, spec.beta_clip)
+            out.append((motion, k, seed, betas))
+    seqs = []
+    for motion, k, seed, betas in progress(out, desc=f"sequences ({spec.split})", unit="seq"):
+        seqs.append(make_sequence(
+            motion, spec.n_frames, spec.fps, seed, betas=betas, transition=spec.transition,
+            split=spec.split, name=f"{spec.split}_{motion}_{k:03d}", **spec.params.get(motion, {}),
+        ))  # fmt: skip
+    return seqs
+
+
+def dataset_path(name: str) -> Path:
+    """Where a named dataset lives: ``data/datasets/<name>.h5``."""
+    return data_dir() / "datasets" / f"{name}.h5"
+
+
+def _resolve(name_or_spec) -> tuple[str, DatasetSpec]:
+    if isinstance(name_or_spec, DatasetSpec):
+        return f"custom_{name_or_spec.hash()}", name_or_spec
+    if name_or_spec not in DATASETS:
+        raise KeyError(f"unknown dataset {name_or_spec!r}; known datasets: {', '.join(DATASETS)}")
+    return name_or_spec, DATASETS[name_or_spec]
+
+
+def _is_current(path: Path, spec_hash: str) -> bool:
+    try:
+        with h5py.File(path, "r") as f:
+            return f.attrs.get("spec_hash") == spec_hash and f.attrs.get("complete", False)
+    except OSError:  # missing, truncated or corrupt file
+        return False
+
+
+def build_dataset(name_or_spec, force: bool = False, path: Path | None = None) -> Path:
+    """Build a named dataset (or a :class:`DatasetSpec`) into h5 unless an identical one exists; returns its path."""
+    name, spec = _resolve(name_or_spec)
+    path = Path(path) if path is not None else dataset_path(name)
+    if not force and _is_current(path, spec.hash()):
+        return path
+    seqs = spec_sequences(spec)
+    with atomic_write(path, mode=None) as tmp, h5py.File(tmp, "w") as f:
+        f.attrs["spec"] = json.dumps(asdict(spec))
+        f.attrs["spec_hash"] = spec.hash()
+        for seq in seqs:
+            seq.write_h5(f.create_group(seq.name))
+        f.attrs["complete"] = True
+    return path
+
+
+def load_dataset(name_or_path) -> list[BodySequence]:
+    """Sequences of a dataset, by name (built if needed) or by file path."""
+    path = Path(name_or_path)
+    if not path.suffix == ".h5":
+        path = build_dataset(str(name_or_path))
+    with h5py.File(path, "r") as f:
+        if not f.attrs.get("complete", False):
+            raise ValueError(f"{path} is incomplete; rebuild it with `python -m drapebench.body.dataset <name> --force`")
+        return [BodySequence.read_h5(f[k]) for k in sorted(f.keys())]
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description="Build a named dataset of body sequences into data/datasets/.")
+    parser.add_argument("names", nargs="*", help=f"dataset names ({', '.join(DATASETS)})")
+    parser.add_argument("--force", action="store_true", help="rebuild even if an identical dataset exists")
+    parser.add_argument("--list", action="store_true", help="list the known datasets and exit")
+    args = parser.parse_args(argv)
+    if args.list or not args.names:
+        for name, spec in DATASETS.items():
+            print(f"{name:14s} {len(spec.motions) * spec.per_motion:4d} sequences x {spec.n_frames} frames  {', '.join(spec.motions)}")
+        return
+    for name in args.names:
+        print(build_dataset(name, force=args.force))
+
+
+if __name__ == "__main__":
+    main()
