@@ -1,0 +1,124 @@
+import pickle
+
+import numpy as np
+import pytest
+import scipy.sparse
+import torch
+
+from drapebench.body import BodyModel, lbs, load_body
+from drapebench.body.bake import JOINT_NAMES, PARENTS
+
+
+def _tiny_smpl_arrays(rng, V=40, J=4, S=3):
+    w = rng.random((V, J))
+    w /= w.sum(1, keepdims=True)
+    return dict(
+        v_template=rng.normal(size=(V, 3)),
+        shapedirs=rng.normal(size=(V, 3, S)) * 0.01,
+        posedirs=rng.normal(size=(V, 3, 9 * (J - 1))) * 0.001,
+        J_regressor=np.full((J, V), 1.0 / V),
+        weights=w,
+        kintree_table=np.array([[2**32 - 1, 0, 1, 1], [0, 1, 2, 3]], dtype=np.int64),
+        f=rng.integers(0, V, (30, 3)),
+    )
+
+
+@pytest.mark.parametrize("name", ["anny_lowres", "anny"])
+def test_shipped_body_rest_pose_reproduces_template(name):
+    body = load_body(name)
+    assert body.joint_names == list(JOINT_NAMES)
+    assert body.parents == list(PARENTS)
+    assert body.n_betas >= 8
+    out = body.forward(torch.zeros(1, body.n_betas), torch.zeros(1, body.n_joints, 3), torch.zeros(1, 3))
+    assert torch.allclose(out.vertices[0], body.v_template, atol=1e-6)
+    assert torch.allclose(body.weights.sum(1), torch.ones(body.n_vertices), atol=1e-5)
+
+
+def test_lbs_exact_for_rigid_single_joint_weights():
+    rng = np.random.default_rng(0)
+    V, J = 30, 3
+    weights = np.zeros((V, J))
+    weights[:, 1] = 1.0
+    body = BodyModel(rng.normal(size=(V, 3)), np.zeros((V, 3, 2)), np.eye(J, V), weights, [-1, 0, 1], np.array([[0, 1, 2]]))
+    pose = torch.zeros(1, J, 3)
+    pose[0, 0] = torch.tensor([0.0, 0.0, 0.7])
+    pose[0, 1] = torch.tensor([0.3, -0.2, 0.1])
+    trans = torch.tensor([[0.1, 0.2, 0.3]])
+    out = body.forward(None, pose, trans)
+    # all vertices follow joint 1's rigid transform: x' = G1 (x - j1) + j1_posed
+    G = out.transforms[0, 1]
+    expected = body.v_template @ G[:3, :3].T + G[:3, 3]
+    assert torch.allclose(out.vertices[0], expected, atol=1e-6)
+    # and the transform is rigid
+    R = G[:3, :3]
+    assert torch.allclose(R @ R.T, torch.eye(3), atol=1e-6)
+    # lbs() on the same points agrees with forward
+    assert torch.allclose(lbs(body.v_template, body.weights, out.transforms), out.vertices, atol=1e-6)
+
+
+def test_joints_move_with_shape(body_lowres):
+    betas = torch.zeros(2, body_lowres.n_betas)
+    betas[1, 0] = 2.0
+    _, joints = body_lowres.shaped(betas)
+    moved = (joints[1] - joints[0]).norm(dim=-1)
+    assert moved[1:].max() > 0.01  # the first component changes the skeleton by centimetres
+    # joints stay inside the body's extent
+    v, _ = body_lowres.shaped(betas)
+    assert (joints[1, :, 2] < v[1, :, 2].max()).all() and (joints[1, :, 2] > v[1, :, 2].min()).all()
+
+
+def test_float64_and_gradcheck():
+    rng = np.random.default_rng(1)
+    a = _tiny_smpl_arrays(rng, V=12, J=3, S=2)
+    a["kintree_table"] = a["kintree_table"][:, :3]
+    a["posedirs"] = a["posedirs"][:, :, : 9 * 2]
+    body = BodyModel(a["v_template"], a["shapedirs"], a["J_regressor"][:3], a["weights"][:, :3] / a["weights"][:, :3].sum(1, keepdims=True),
+                     [-1, 0, 1], a["f"] % 12, posedirs=a["posedirs"], dtype=torch.float64)  # fmt: skip
+    pose = torch.randn(2, 3, 3, dtype=torch.float64, requires_grad=True)
+    betas = torch.randn(2, 2, dtype=torch.float64, requires_grad=True)
+    assert body.forward(betas, pose).vertices.dtype == torch.float64
+    assert torch.autograd.gradcheck(lambda b, p: body.forward(b, p).vertices, (betas, pose))
+
+
+def test_user_smpl_npz_and_pkl(tmp_path):
+    rng = np.random.default_rng(2)
+    a = _tiny_smpl_arrays(rng)
+    np.savez(tmp_path / "m.npz", **a)
+    pk = dict(a, J_regressor=scipy.sparse.csc_matrix(a["J_regressor"]))
+    with open(tmp_path / "m.pkl", "wb") as f:
+        pickle.dump(pk, f)
+    for path in (tmp_path / "m.npz", tmp_path / "m.pkl"):
+        body = load_body(path)
+        assert body.n_joints == 4 and body.parents == [-1, 0, 1, 1] and body.posedirs is not None
+        assert torch.allclose(body.forward().vertices[0], torch.as_tensor(a["v_template"], dtype=torch.float32), atol=1e-6)
+    yup = load_body(tmp_path / "m.npz", up_axis="y")
+    v = torch.as_tensor(a["v_template"], dtype=torch.float32)
+    assert torch.allclose(yup.v_template[:, 2], v[:, 1], atol=1e-6)  # old Y is the new Z
+    assert torch.allclose(yup.v_template[:, 1], -v[:, 2], atol=1e-6)
+
+
+def test_malformed_body_file_names_the_key(tmp_path):
+    rng = np.random.default_rng(3)
+    a = _tiny_smpl_arrays(rng)
+    b = dict(a)
+    del b["weights"]
+    np.savez(tmp_path / "missing.npz", **b)
+    with pytest.raises(ValueError, match="weights"):
+        load_body(tmp_path / "missing.npz")
+    c = dict(a, shapedirs=a["shapedirs"][:10])
+    np.savez(tmp_path / "shape.npz", **c)
+    with pytest.raises(ValueError, match=r"shapedirs has shape \(10, 3, 3\)"):
+        load_body(tmp_path / "shape.npz")
+    with pytest.raises(FileNotFoundError, match="neither a shipped body"):
+        load_body(tmp_path / "nope.npz")
+
+
+def test_bad_pose_input_is_reported(body_lowres):
+    with pytest.raises(ValueError, match=r"expects \(B, 22, 3\)"):
+        body_lowres.forward(None, torch.zeros(1, 24, 3))
+    pose = torch.zeros(1, 22, 3)
+    pose[0, 3, 1] = float("nan")
+    with pytest.raises(ValueError, match="NaN"):
+        body_lowres.forward(None, pose)
+    with pytest.raises(ValueError, match="betas"):
+        body_lowres.forward(torch.zeros(1, 50))
