@@ -1,0 +1,223 @@
+"""Cloth energies, batched over (B, V, 3), differentiable, float32 or float64.
+
+Each function returns a (B,) total, or per-element values with ``per_element=True``. Formulas
+follow the public GAPS/SNUG code (see ``../shared/notes/anchors_gaps_snug_ncs.md``) and the GenSim
+paper; the source of each is in its docstring. Loss *weights* are never applied here: the caller
+(method) owns them (e.g. GAPS's collision weight 250, the SNUG pitfall).
+"""
+
+from __future__ import annotations
+
+import torch
+
+from drapebench.geometry.ops import dihedral_angles, edge_lengths
+from drapebench.geometry.topology import Topology
+from drapebench.physics.material import Material
+
+
+def _tiny(x: torch.Tensor) -> float:
+    return torch.finfo(x.dtype).tiny
+
+
+def _total(e: torch.Tensor, per_element: bool) -> torch.Tensor:
+    return e if per_element else e.sum(-1)
+
+
+def _batch(x: torch.Tensor) -> torch.Tensor:
+    if x.dim() == 2:
+        x = x[None]
+    if x.dim() != 3 or x.shape[-1] != 3:
+        raise ValueError(f"positions must be (B, V, 3), got {tuple(x.shape)}")
+    return x
+
+
+def deformation_gradient(x: torch.Tensor, topo: Topology) -> torch.Tensor:
+    """Per-face deformation gradient F = Ds Dm^-1, (B, F, 3, 2); Ds = [x1 - x0, x2 - x0]."""
+    f = topo.faces
+    x0 = x[..., f[:, 0], :]
+    Ds = torch.stack([x[..., f[:, 1], :] - x0, x[..., f[:, 2], :] - x0], dim=-1)
+    return Ds @ topo.rest_inv
+
+
+def green_strain(x: torch.Tensor, topo: Topology) -> torch.Tensor:
+    """Green-Lagrange strain G = (F^T F - I) / 2 per face, (B, F, 2, 2)."""
+    F = deformation_gradient(x, topo)
+    eye = torch.eye(2, dtype=x.dtype, device=x.device)
+    return 0.5 * (F.transpose(-1, -2) @ F - eye)
+
+
+def stvk_energy(x: torch.Tensor, topo: Topology, material: Material, per_element: bool = False) -> torch.Tensor:
+    """StVK membrane energy (J): sum_f A_f t (mu |G|_F^2 + lambda/2 tr(G)^2).
+
+    GAPS/SNUG code: S = mu G + lambda/2 tr(G) I, energy density tr(S^T G); A_f is the rest area,
+    mu and lambda per thickness (Material), so the product with thickness t gives N/m.
+    """
+    x = _batch(x)
+    G = green_strain(x, topo)
+    tr = G[..., 0, 0] + G[..., 1, 1]
+    psi = material.lame_mu * (G * G).sum((-1, -2)) + 0.5 * material.lame_lambda * tr * tr
+    return _total(topo.face_areas * material.thickness * psi, per_element)
+
+
+def bending_energy(
+    x: torch.Tensor,
+    topo: Topology,
+    material: Material,
+    rest_angle: str | torch.Tensor = "flat",
+    blend: torch.Tensor | None = None,
+    per_element: bool = False,
+) -> torch.Tensor:
+    """Discrete hinge bending (J): sum_e k s_e / 2 [(1 - w_e) theta_e^2 + w_e (theta_e - theta_bar_e)^2].
+
+    theta is the signed dihedral angle, s_e = l_e^2 / (4 (a0 + a1)) from the rest state (SNUG/GAPS
+    code; the GAPS paper writes l^2/(8a) with no 1/2 in front, the same number), k = Material.bending.
+    ``rest_angle``: "flat" (theta_bar = 0, SNUG), "template" (theta_bar = rest dihedral), or an (H,)
+    tensor. ``blend`` (H,) or (B,H) in [0, 1] gives GAPS's per-edge mix between the flat and the
+    template angle (w = min-max normalised body distance of the edge in the rest pose); with
+    ``blend`` the template angle is theta_bar.
+    """
+    x = _batch(x)
+    theta = dihedral_angles(x, topo.hinge_edges, topo.hinge_opposite)
+    area_sum = topo.face_areas[topo.hinge_faces].sum(-1)
+    scale = topo.hinge_rest_lengths**2 / (4.0 * area_sum)
+    if blend is not None:
+        w = blend.to(x.dtype)
+        e = (1.0 - w) * theta**2 + w * (theta - topo.rest_dihedral) ** 2
+    else:
+        if isinstance(rest_angle, str):
+            if rest_angle not in ("flat", "template"):
+                raise ValueError(f"rest_angle must be 'flat', 'template' or a tensor, not {rest_angle!r}")
+            ref = topo.rest_dihedral if rest_angle == "template" else torch.zeros_like(topo.rest_dihedral)
+        else:
+            ref = rest_angle.to(x.dtype)
+        e = (theta - ref) ** 2
+    return _total(0.5 * material.bending * scale * e, per_element)
+
+
+def gravity_energy(x: torch.Tensor, topo: Topology, material: Material, per_element: bool = False) -> torch.Tensor:
+    """Gravitational potential energy (J): -sum_v m_v g . x_v (GAPS Eq. 10; g = Material.gravity)."""
+    x = _batch(x)
+    g = torch.tensor(material.gravity, dtype=x.dtype, device=x.device)
+    return _total(-topo.vertex_masses(material) * (x * g).sum(-1), per_element)
+
+
+def inertia_energy(
+    x: torch.Tensor,
+    x_prev: torch.Tensor,
+    v_prev: torch.Tensor,
+    topo: Topology,
+    material: Material,
+    dt: float | None = None,
+    per_element: bool = False,
+) -> torch.Tensor:
+    """Inertia (J): sum_v m_v |x - x_hat|^2 / (2 dt^2), x_hat = x_prev + dt v_prev (SNUG/GAPS Eq. 13).
+
+    Callers detach ``x_prev``/``v_prev`` when gradients must not flow into earlier frames (GAPS/NCS
+    use stop_gradient on 2 x1 - x0).
+    """
+    x = _batch(x)
+    dt = material.dt if dt is None else dt
+    x_hat = x_prev + dt * v_prev
+    d = x - x_hat
+    return _total(topo.vertex_masses(material) * (d * d).sum(-1) / (2.0 * dt * dt), per_element)
+
+
+def collision_energy(
+    x: torch.Tensor, nn_point: torch.Tensor, nn_normal: torch.Tensor, eps: float = 2e-3, per_element: bool = False
+) -> torch.Tensor:
+    """Cubic body-collision penalty (m^3): sum_v max(eps - d_v, 0)^3, d_v = n . (x_v - p_v) to the nearest
+    body vertex p_v with normal n (SNUG/GAPS code; the weight, 250 in GAPS, is the caller's)."""
+    x = _batch(x)
+    d = ((x - nn_point) * nn_normal).sum(-1)
+    return _total(torch.relu(eps - d) ** 3, per_element)
+
+
+def hinge_collision_energy(
+    x: torch.Tensor, nn_point: torch.Tensor, nn_normal: torch.Tensor, eps: float = 2e-3, per_element: bool = False
+) -> torch.Tensor:
+    """GenSim's linear hinge collision penalty (m): sum_v max(eps - d_v, 0).
+
+    The paper prints max(-n (B - G), eps); read literally that penalises every vertex by at least
+    eps. We use the hinge on the penetration depth that its text describes (zero once the vertex is
+    eps outside the body).
+    """
+    x = _batch(x)
+    d = ((x - nn_point) * nn_normal).sum(-1)
+    return _total(torch.relu(eps - d), per_element)
+
+
+def ring_covariance(x: torch.Tensor, topo: Topology) -> torch.Tensor:
+    """Covariance of each vertex's 1-ring neighbours (centre excluded, mean-centred, / count): (B, V, 3, 3)."""
+    x = _batch(x)
+    owner = topo.ring_owner
+    cnt = topo.ring_sizes.clamp_min(1).to(x.dtype)
+    xn = x[:, topo.ring_idx]
+    mean = torch.zeros_like(x).index_add(1, owner, xn) / cnt[:, None]
+    d = xn - mean[:, owner]
+    outer = (d[..., :, None] * d[..., None, :]).reshape(x.shape[0], -1, 9)
+    cov = torch.zeros(x.shape[0], x.shape[1], 9, dtype=x.dtype, device=x.device).index_add(1, owner, outer)
+    return (cov / cnt[:, None]).reshape(x.shape[0], x.shape[1], 3, 3)
+
+
+def _det3(m: torch.Tensor) -> torch.Tensor:
+    return (
+        m[..., 0, 0] * (m[..., 1, 1] * m[..., 2, 2] - m[..., 1, 2] * m[..., 2, 1])
+        - m[..., 0, 1] * (m[..., 1, 0] * m[..., 2, 2] - m[..., 1, 2] * m[..., 2, 0])
+        + m[..., 0, 2] * (m[..., 1, 0] * m[..., 2, 1] - m[..., 1, 1] * m[..., 2, 0])
+    )
+
+
+def inextensibility_energy(
+    x: torch.Tensor, topo: Topology, k_ext: float | torch.Tensor = 1.0, per_element: bool = False
+) -> torch.Tensor:
+    """GAPS collision-aware inextensibility (m^6): sum_v sum_j |det(C_v - k_ext,v sigma_j,v I)| (GAPS Eq. 15).
+
+    C_v is the current 1-ring covariance, sigma_j the template's eigenvalues
+    (``Topology.rest_ring_eigvals``); ``k_ext`` is a scalar or (B, V) per-vertex factor (1 = inextensible;
+    GAPS Eq. 16 raises it where the garment collides). The weight (2e8) is the caller's.
+    """
+    x = _batch(x)
+    C = ring_covariance(x, topo)
+    k = torch.as_tensor(k_ext, dtype=x.dtype, device=x.device)
+    k = k[..., None] if k.dim() >= 1 else k
+    sig = k * topo.rest_ring_eigvals  # (B|1, V, 3)
+    eye = torch.eye(3, dtype=x.dtype, device=x.device)
+    dets = _det3(C[:, :, None] - sig[..., None, None] * eye)  # (B, V, 3)
+    return _total(dets.abs().sum(-1), per_element)
+
+
+def restrain_energy(
+    x: torch.Tensor, topo: Topology, fabric_mean: float, fabric_std: float, per_element: bool = False
+) -> torch.Tensor:
+    """GenSim restrain energy (dimensionless): sum_e ((|l_e - l0_e| - mu_fabric) / sigma_fabric)^2 (GenSim Eq. 2-3).
+
+    ``fabric_mean``/``fabric_std`` (m) are the mean and std of absolute edge-length changes of the
+    fabric, estimated from reference simulations.
+    """
+    x = _batch(x)
+    if not fabric_std > 0:
+        raise ValueError(f"fabric_std must be positive, got {fabric_std}")
+    phi = (edge_lengths(x, topo.edges) - topo.rest_edge_lengths).abs()
+    return _total(((phi - fabric_mean) / fabric_std) ** 2, per_element)
+
+
+def pin_energy(x: torch.Tensor, target: torch.Tensor, pins: torch.Tensor, per_element: bool = False) -> torch.Tensor:
+    """Pin energy (m^2): sum_{i in pins} |x_i - target_i|^2 (GenSim Eq. 5); target (P,3) or (B,P,3)."""
+    x = _batch(x)
+    d = x[:, pins] - target
+    return _total((d * d).sum(-1), per_element)
+
+
+def laplacian(x: torch.Tensor, topo: Topology) -> torch.Tensor:
+    """Cotangent Laplacian applied to positions, L x: (B, V, 3)."""
+    x = _batch(x)
+    B, V, _ = x.shape
+    flat = x.permute(1, 0, 2).reshape(V, B * 3)
+    L = topo.laplacian if topo.laplacian.dtype == x.dtype else topo.laplacian.to(x.dtype)
+    return torch.sparse.mm(L, flat).reshape(V, B, 3).permute(1, 0, 2)
+
+
+def laplacian_smoothness(x: torch.Tensor, topo: Topology, per_element: bool = False) -> torch.Tensor:
+    """Mesh smoothness (m): sum_v |(L x)_v| with the cotangent Laplacian (GenSim Eq. 7)."""
+    lx = laplacian(x, topo)
+    return _total(torch.sqrt((lx * lx).sum(-1) + _tiny(lx)), per_element)

@@ -1,0 +1,53 @@
+"""``energy_terms``: every energy a scene has the inputs for, by name."""
+
+from __future__ import annotations
+
+import torch
+
+from drapebench.geometry.proximity import nearest_body_vertex
+from drapebench.geometry.topology import Topology
+from drapebench.physics.energies import (
+    bending_energy,
+    collision_energy,
+    gravity_energy,
+    inertia_energy,
+    stvk_energy,
+)
+from drapebench.physics.material import Material
+
+
+def energy_terms(
+    x: torch.Tensor,
+    topology: Topology,
+    material: Material,
+    body_vertices: torch.Tensor | None = None,
+    body_normals: torch.Tensor | None = None,
+    x_prev: torch.Tensor | None = None,
+    v_prev: torch.Tensor | None = None,
+    rest_angle: str | torch.Tensor = "flat",
+    candidates: torch.Tensor | None = None,
+) -> dict[str, torch.Tensor]:
+    """Named (B,) energies of garment positions x (B, V, 3) in joules (collision in m^3, unweighted).
+
+    Always ``stvk``, ``bending``, ``gravity``; ``inertia`` when ``x_prev`` and ``v_prev`` (B, V, 3) are
+    given; ``collision`` (cubic, Material.collision_thickness) when ``body_vertices`` and
+    ``body_normals`` (B, Vb, 3) are given (``candidates`` restricts the body vertices searched).
+    Terms whose inputs are missing are skipped, never computed on placeholders.
+    """
+    if x.dim() == 2:
+        x = x[None]
+    terms = {
+        "stvk": stvk_energy(x, topology, material),
+        "bending": bending_energy(x, topology, material, rest_angle=rest_angle),
+        "gravity": gravity_energy(x, topology, material),
+    }
+    if (x_prev is None) != (v_prev is None):
+        raise ValueError("inertia needs both x_prev and v_prev (or neither)")
+    if x_prev is not None:
+        terms["inertia"] = inertia_energy(x, x_prev, v_prev, topology, material)
+    if (body_vertices is None) != (body_normals is None):
+        raise ValueError("collision needs both body_vertices and body_normals (or neither)")
+    if body_vertices is not None:
+        nn = nearest_body_vertex(x, body_vertices, body_normals, candidates)
+        terms["collision"] = collision_energy(x, nn.point, nn.normal, material.collision_thickness)
+    return terms

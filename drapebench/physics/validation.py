@@ -1,0 +1,59 @@
+"""Detect degenerate cloth states (reported, never silently fixed)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+
+from drapebench.geometry.ops import dihedral_angles, edge_lengths, face_areas
+from drapebench.geometry.topology import Topology
+
+
+@dataclass
+class MeshStateReport:
+    """Indices (into the flattened batch x element arrays per frame) of degenerate elements."""
+
+    nonfinite_vertices: list = field(default_factory=list)
+    degenerate_faces: list = field(default_factory=list)
+    collapsed_edges: list = field(default_factory=list)
+    folded_hinges: list = field(default_factory=list)
+    overstretched_edges: list = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return not any(getattr(self, k) for k in self.__dataclass_fields__)
+
+    def __str__(self) -> str:
+        if self.ok:
+            return "mesh state ok"
+        parts = []
+        for k in self.__dataclass_fields__:
+            v = getattr(self, k)
+            if v:
+                parts.append(f"{len(v)} {k.replace('_', ' ')} (first: {v[:5]})")
+        return "; ".join(parts)
+
+
+def validate_mesh_state(
+    x: torch.Tensor, topo: Topology, area_ratio: float = 1e-3, length_ratio: float = 1e-3, max_stretch: float = 10.0, fold: float = 0.95 * np.pi
+) -> MeshStateReport:
+    """Report degenerate elements of positions x (B, V, 3) or (V, 3): non-finite vertices, faces whose area
+    fell below ``area_ratio`` x rest, edges shorter than ``length_ratio`` x rest or longer than
+    ``max_stretch`` x rest, hinges folded beyond ``fold`` radians. Entries are (frame, index) pairs."""
+    x = x[None] if x.dim() == 2 else x
+    x = x.detach()
+    rep = MeshStateReport()
+
+    def pairs(mask):
+        return [tuple(p) for p in torch.nonzero(mask).tolist()]
+
+    rep.nonfinite_vertices = pairs(~torch.isfinite(x).all(-1))
+    xs = torch.nan_to_num(x)
+    rep.degenerate_faces = pairs(face_areas(xs, topo.faces) < area_ratio * topo.face_areas)
+    ratio = edge_lengths(xs, topo.edges) / topo.rest_edge_lengths
+    rep.collapsed_edges = pairs(ratio < length_ratio)
+    rep.overstretched_edges = pairs(ratio > max_stretch)
+    rep.folded_hinges = pairs(dihedral_angles(xs, topo.hinge_edges, topo.hinge_opposite).abs() > fold)
+    return rep
