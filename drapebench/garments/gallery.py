@@ -1,0 +1,76 @@
+"""Render every garment kind on the canonical body, front and side, into one PNG.
+
+``python -m drapebench.garments.gallery --out docs/garments.png [--body anny]``
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+
+def _shade(V, F, base, light):
+    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+    lam = 0.35 + 0.65 * np.abs(n @ light)
+    return np.clip(np.asarray(base)[None] * lam[:, None], 0, 1)
+
+
+def render_gallery(out: Path, body_name: str = "anny", kinds=None) -> Path:
+    """Draw each kind (front and side view) on the body; returns the written PNG path."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    from drapebench.body import load_body
+    from drapebench.cache import atomic_write
+    from drapebench.garments import GARMENT_KINDS, make_garment
+
+    body = load_body(body_name)
+    kinds = list(kinds or GARMENT_KINDS)
+    bV, bF = body.v_template.numpy(), body.faces.numpy()
+    views = {"front": (0, -90), "side": (0, 0)}  # elevation, azimuth; the body faces -Y
+    fig = plt.figure(figsize=(2.2 * len(kinds), 2 * 2.6))
+    for col, kind in enumerate(kinds):
+        g = make_garment(kind, body)
+        gV, gF = g.vertices.numpy(), g.faces.numpy()
+        for row, (vname, (elev, azim)) in enumerate(views.items()):
+            ax = fig.add_subplot(2, len(kinds), row * len(kinds) + col + 1, projection="3d")
+            light = np.array([np.cos(np.radians(azim)), np.sin(np.radians(azim)), 0.4])
+            light /= np.linalg.norm(light)
+            V = np.concatenate([bV, gV])
+            F = np.concatenate([bF, gF + len(bV)])
+            colors = np.concatenate([_shade(bV, bF, (0.85, 0.75, 0.68), light), _shade(gV, gF, (0.25, 0.45, 0.8), light)])
+            pc = Poly3DCollection(V[F], facecolors=colors, edgecolors="none")
+            ax.add_collection3d(pc)
+            lo, hi = bV.min(0), bV.max(0)
+            c, r = (lo + hi) / 2, (hi - lo).max() / 2
+            ax.set_xlim(c[0] - r, c[0] + r), ax.set_ylim(c[1] - r, c[1] + r), ax.set_zlim(c[2] - r, c[2] + r)
+            ax.view_init(elev=elev, azim=azim)
+            ax.set_box_aspect((1, 1, 1))
+            ax.set_axis_off()
+            if row == 0:
+                ax.set_title(f"{kind}\n{g.n_vertices} v", fontsize=9)
+    fig.subplots_adjust(0, 0, 1, 0.93, 0, 0)
+    out = Path(out)
+    with atomic_write(out, mode=None) as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
+    plt.close(fig)
+    return out
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--out", type=Path, default=Path("docs/garments.png"))
+    parser.add_argument("--body", default="anny", help="body name (anny, anny_lowres) or SMPL-format file")
+    parser.add_argument("--kinds", nargs="*", help="subset of garment kinds")
+    args = parser.parse_args(argv)
+    print(render_gallery(args.out, args.body, args.kinds))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,104 @@
+"""The Garment record, its export, and loading a user's garment with the same validity checks."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from drapebench.cache import atomic_write
+from drapebench.geometry.topology import Topology, get_topology
+
+
+@dataclass
+class Garment:
+    """A garment on the canonical (rest-pose) body.
+
+    vertices (V, 3) float32 metres; faces (F, 3) long, outward-oriented; pins (P,) long vertex
+    indices the papers hold to the body (waistband / neck-shoulder band); topology: cached
+    :class:`Topology`; kind, params (construction parameters), betas (S,) the body shape it was made on.
+    """
+
+    name: str
+    kind: str
+    vertices: torch.Tensor
+    faces: torch.Tensor
+    pins: torch.Tensor
+    topology: Topology
+    params: dict = field(default_factory=dict)
+    betas: torch.Tensor = field(default_factory=lambda: torch.zeros(10))
+    body_name: str = "anny"
+
+    @property
+    def n_vertices(self) -> int:
+        return self.vertices.shape[0]
+
+    def export(self, path: str | Path) -> None:
+        """Write an OBJ or PLY (by suffix) atomically."""
+        import trimesh
+
+        path = Path(path)
+        if path.suffix.lower() not in (".obj", ".ply"):
+            raise ValueError(f"unsupported garment file type {path.suffix!r}; use .obj or .ply")
+        mesh = trimesh.Trimesh(self.vertices.numpy(), self.faces.numpy(), process=False)
+        with atomic_write(path, "wb") as f:
+            mesh.export(f, file_type=path.suffix[1:].lower())
+
+
+def read_obj(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices and triangles of an OBJ exactly as written (polygons fan-triangulated; unlike trimesh,
+    unreferenced vertices are kept so validation can report them)."""
+    verts, faces = [], []
+    for n, line in enumerate(Path(path).read_text().splitlines(), 1):
+        parts = line.split()
+        if not parts:
+            continue
+        try:
+            if parts[0] == "v":
+                verts.append([float(t) for t in parts[1:4]])
+            elif parts[0] == "f":
+                idx = [int(t.split("/")[0]) for t in parts[1:]]
+                idx = [i - 1 if i > 0 else len(verts) + i for i in idx]
+                faces += [[idx[0], idx[k], idx[k + 1]] for k in range(1, len(idx) - 1)]
+        except ValueError as exc:
+            raise ValueError(f"{path}:{n}: cannot parse {line!r} ({exc})") from exc
+    return np.asarray(verts, dtype=np.float64).reshape(-1, 3), np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+
+
+def load_garment(path: str | Path, body, betas=None, kind: str = "custom", pins=None, name: str | None = None) -> Garment:
+    """Load a user's OBJ/PLY garment placed on the canonical body (rest pose, ``betas``) and validate it.
+
+    Raises ValueError listing every failed check (inside-body vertices, non-manifold edges,
+    degenerate faces, duplicate/unreferenced vertices, flipped orientation, ...).
+    """
+    import trimesh
+
+    from drapebench.garments.validate import validate_garment
+
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"garment file {path} does not exist")
+    if path.suffix.lower() == ".obj":
+        V, F = read_obj(path)
+    else:
+        try:
+            mesh = trimesh.load(path, process=False, force="mesh")
+        except Exception as exc:  # trimesh raises many types for unreadable files
+            raise ValueError(f"{path}: cannot read a triangle mesh ({exc})") from exc
+        V, F = np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int64)
+    betas_t = torch.zeros(body.n_betas) if betas is None else torch.as_tensor(betas, dtype=torch.float32)
+    with torch.no_grad():
+        body_v = body.shaped(betas_t[None])[0][0].double().numpy()
+    report = validate_garment(V, F, body_v, body.faces.numpy())
+    # a user's mesh is judged on structure and placement, not on our factory's triangle targets
+    report.failures.pop("triangle_quality", None)
+    if not report.ok:
+        raise ValueError(f"{path} is not a valid garment:\n{report}")
+    pins_t = torch.as_tensor(np.asarray(pins if pins is not None else [], dtype=np.int64))
+    return Garment(
+        name=name or path.stem, kind=kind, vertices=torch.as_tensor(V, dtype=torch.float32),
+        faces=torch.as_tensor(F), pins=pins_t, topology=get_topology(V, F), params={"source": str(path)},
+        betas=betas_t, body_name=body.name,
+    )  # fmt: skip

@@ -1,0 +1,86 @@
+import numpy as np
+import pytest
+import torch
+
+from drapebench.garments import GARMENT_KINDS, load_garment, make_garment
+from drapebench.garments.factory import EXPECTED_LOOPS, garment_params
+from drapebench.garments.validate import cross_sections
+
+
+@pytest.mark.parametrize("kind", ["skirt", "pants"])
+def test_fast_kinds_are_valid_on_lowres(kind, body_lowres):
+    g = make_garment(kind, body_lowres)
+    s = g.params
+    assert s["stat_boundary_loops"] == EXPECTED_LOOPS[kind]
+    assert s["stat_min_clearance_mm"] >= 2.0 and s["stat_self_intersecting_faces"] == 0
+    assert s["stat_min_angle_ge20"] >= 0.99 and abs(s["stat_mean_edge_mm"] - 15.0) < 0.15 * 15.0
+    assert g.topology.n_vertices == g.n_vertices and len(g.pins) > 0
+    # pins are the waistband: the highest vertices of the garment
+    assert g.vertices[g.pins, 2].mean() > g.vertices[:, 2].quantile(0.9)
+    V, F = g.vertices.numpy(), g.faces.numpy()
+    hip = body_lowres.shaped()[1][0, body_lowres.joint_index("left_hip"), 2].item()
+    knee = body_lowres.shaped()[1][0, body_lowres.joint_index("left_knee"), 2].item()
+    assert cross_sections(V, F, 0.5 * (hip + knee) if kind == "pants" else hip - 0.1) == (2 if kind == "pants" else 1)
+
+
+def test_cached_garment_is_identical(body_lowres):
+    a = make_garment("skirt", body_lowres)
+    b = make_garment("skirt", body_lowres)
+    assert torch.equal(a.vertices, b.vertices) and torch.equal(a.faces, b.faces)
+
+
+def test_parameters_and_errors():
+    p = garment_params("skirt", seed=3, flare=0.3)
+    assert p["flare"] == 0.3 and p != garment_params("skirt", seed=4, flare=0.3)
+    with pytest.raises(ValueError, match="valid kinds: tshirt"):
+        garment_params("poncho")
+    with pytest.raises(ValueError, match="unknown parameter"):
+        garment_params("skirt", sleeve=1.0)
+
+
+def test_export_and_load_round_trip(tmp_path, body_lowres):
+    g = make_garment("skirt", body_lowres)
+    for suffix in (".obj", ".ply"):
+        g.export(tmp_path / f"s{suffix}")
+        back = load_garment(tmp_path / f"s{suffix}", body_lowres)
+        assert np.allclose(back.vertices.numpy(), g.vertices.numpy(), atol=1e-5)
+        assert torch.equal(back.faces, g.faces)
+
+
+def _write(path, V, F):
+    with open(path, "w") as f:
+        f.writelines(f"v {x} {y} {z}\n" for x, y, z in V)
+        f.writelines(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in F)
+
+
+def test_broken_garments_are_reported_by_name(tmp_path, body_lowres):
+    g = make_garment("skirt", body_lowres)
+    V, F = g.vertices.numpy().astype(np.float64), g.faces.numpy()
+    cases = {
+        "degenerate_faces": (V, np.concatenate([F, [[0, 0, 1]]])),
+        "duplicate_vertices": (np.concatenate([V, V[:1]]), np.concatenate([F, [[len(V), F[0, 1], F[0, 2]]]])),
+        "unreferenced_vertices": (np.concatenate([V, [[0, 0, 5.0]]]), F),
+        "inconsistent_winding": (V, np.concatenate([F[:10], F[10:11, ::-1], F[11:]])),
+        "inside_body": (np.where(np.arange(len(V))[:, None] == 5, 0.0, V), F),
+        "orientation": (V, F[:, ::-1]),
+    }
+    e = np.concatenate([F[:, [0, 1]]])[0]
+    cases["non_manifold_edges"] = (np.concatenate([V, [[0, 0, 5.0], [0, 0, 6.0]]]),
+                                   np.concatenate([F, [[e[0], e[1], len(V)], [e[1], e[0], len(V) + 1]]]))  # fmt: skip
+    for name, (v, f) in cases.items():
+        _write(tmp_path / f"{name}.obj", v, f)
+        with pytest.raises(ValueError, match=name):
+            load_garment(tmp_path / f"{name}.obj", body_lowres)
+    with pytest.raises(FileNotFoundError):
+        load_garment(tmp_path / "nope.obj", body_lowres)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", GARMENT_KINDS)
+@pytest.mark.parametrize("resolution", [0.012, 0.018, 0.025])
+@pytest.mark.parametrize("betas", [0.0, -1.5, 1.5])
+def test_every_kind_resolution_and_shape_is_valid(kind, resolution, betas, body_full):
+    shape = torch.zeros(10)
+    shape[0] = betas
+    g = make_garment(kind, body_full, betas=shape, resolution=resolution)  # raises with the report if invalid
+    assert 500 < g.n_vertices < 20000
