@@ -1,0 +1,88 @@
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+import torch
+import trimesh
+
+from drapebench.body import BodyModel, BodySequence
+from drapebench.geometry import get_topology
+from drapebench.geometry.proximity import culled_body_vertices, nearest_body_vertex, signed_distance
+from drapebench.metrics import evaluate
+
+
+@pytest.fixture(scope="module")
+def sphere_scene():
+    """A one-joint 'body' that is a sphere of radius 0.5, and a spherical 'garment' of radius 0.8."""
+    s = trimesh.creation.icosphere(3, radius=0.5)
+    V = len(s.vertices)
+    body = BodyModel(s.vertices, np.zeros((V, 3, 1)), np.full((1, V), 1.0 / V), np.ones((V, 1)), [-1], s.faces, name="sphere")
+    g = trimesh.creation.icosphere(1, radius=0.8)
+    garment = SimpleNamespace(topology=get_topology(g.vertices, g.faces), n_vertices=len(g.vertices),
+                              vertices=torch.as_tensor(g.vertices, dtype=torch.float32))  # fmt: skip
+    seq = BodySequence("still", "static", torch.zeros(1), torch.zeros(4, 1, 3), torch.zeros(4, 3), n_transition=1)
+    return body, garment, seq
+
+
+def test_eps_c_is_exact_for_points_inside_a_sphere(sphere_scene):
+    body, garment, seq = sphere_scene
+    pred = garment.vertices[None].repeat(seq.n_frames, 1, 1).clone()
+    inside = [[], [0, 1, 2], [3, 4, 5, 6, 7, 8], [0]]  # per frame
+    for t, idx in enumerate(inside):
+        pred[t, idx] *= 0.3 / 0.8  # radius 0.3: 0.2 m deep inside the 0.5 sphere
+    summary, frames = evaluate(garment, seq, body, pred, energies=False)
+    n = garment.n_vertices
+    expected = [100 * len(i) / n for i in inside[1:]]  # frame 0 is the transition
+    assert np.allclose(frames["eps_c"], expected) and np.allclose(frames["eps_c_nn"], expected)
+    assert np.isclose(summary["eps_c"], np.mean(expected)) and np.isclose(summary["eps_c_std"], np.std(expected))
+    assert np.allclose(frames["penetration_mm"], [200, 200, 200], atol=2.0)  # mesh vs true sphere
+
+
+def test_uniform_stretch_and_reference_error(sphere_scene):
+    body, garment, seq = sphere_scene
+    pred = garment.vertices[None].repeat(seq.n_frames, 1, 1) * 1.1
+    summary, _ = evaluate(garment, seq, body, pred, reference=pred * 0 + garment.vertices, energies=True)
+    assert np.isclose(summary["eps_e"], 10.0, atol=1e-3) and np.isclose(summary["eps_a"], 21.0, atol=1e-3)
+    assert np.isclose(summary["vertex_error_mm"], 80.0, rtol=1e-4)  # every vertex 0.08 m out
+    assert summary["jitter"] == 0.0 and summary["eps_c"] == 0.0 and summary["penetration_mm"] == 0.0
+    assert summary["energy_stvk"] > 0 and "energy_collision" in summary
+
+
+def test_jitter_zero_for_linear_motion_positive_for_shaking(sphere_scene):
+    body, garment, seq = sphere_scene
+    t = torch.arange(seq.n_frames, dtype=torch.float32)[:, None, None]
+    linear = garment.vertices[None] + 0.01 * t
+    assert evaluate(garment, seq, body, linear, energies=False)[0]["jitter"] < 1e-3
+    shaking = garment.vertices[None] + 0.01 * (-1) ** t
+    assert evaluate(garment, seq, body, shaking, energies=False)[0]["jitter"] > 10
+
+
+def test_bad_prediction_is_reported(sphere_scene):
+    body, garment, seq = sphere_scene
+    pred = garment.vertices[None].repeat(seq.n_frames, 1, 1).clone()
+    pred[2, 5, 0] = float("nan")
+    with pytest.raises(ValueError, match=r"NaN/Inf in frames \[2\]"):
+        evaluate(garment, seq, body, pred)
+    with pytest.raises(ValueError, match="expected"):
+        evaluate(garment, seq, body, pred[:2])
+
+
+def test_proximity_matches_brute_force_and_culling(body_lowres):
+    from drapebench.body import make_sequence
+    from drapebench.garments import make_garment
+
+    g = make_garment("skirt", body_lowres)
+    seq = make_sequence("walk", 8, seed=1)
+    bv, bn = seq.vertices(body_lowres), seq.vertex_normals(body_lowres)
+    x = g.vertices[None] + seq.trans[:, None]
+    nn = nearest_body_vertex(x, bv, bn)
+    brute = torch.cdist(x.double(), bv.double()).argmin(-1)
+    assert (nn.index == brute).float().mean() > 0.999
+    cand = culled_body_vertices(g.vertices, body_lowres.v_template, body_lowres.weights)
+    assert len(cand) < 0.8 * body_lowres.n_vertices
+    head = body_lowres.weights[:, body_lowres.joint_index("head")] > 0.5
+    assert not torch.isin(torch.nonzero(head).squeeze(1), cand).any()  # a skirt never looks at the head
+    assert torch.equal(nearest_body_vertex(x, bv, bn, cand).index, nn.index)
+    sd = signed_distance(x[:1], bv[:1], body_lowres.faces)
+    d2 = torch.cdist(x[0].double(), bv[0].double()).min(-1).values
+    assert (sd[0].abs() <= d2.float() + 1e-5).all()  # distance to the surface <= distance to its vertices
