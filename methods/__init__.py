@@ -13,6 +13,7 @@ from methods.base import DrapeResult, DrapingMethod, FitReport
 
 _REGISTRY: dict[str, str] = {
     # name -> "module:Class"; imported lazily so one method's heavy deps never load for another.
+    "lbs": "methods.lbs:LBSMethod",
 }
 
 

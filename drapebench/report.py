@@ -1,0 +1,158 @@
+"""Tables (Markdown, LaTeX, CSV) and runtime-vs-error plots from run directories.
+
+``python -m drapebench.report <run or sweep dirs> --table baseline --out reports/baseline``
+gathers every ``metrics.json`` below the given folders and writes ``<out>.md``, ``<out>.tex``,
+``<out>.csv`` and ``<out>_runtime.png``, each with its provenance (command, commit, machine).
+Layout as in the papers: methods as rows, garments as column groups, metrics as sub-columns;
+where a metric has a ``<metric>_std`` column it is shown as mean +- std.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import sys
+from datetime import datetime, timezone
+from pathlib import Path
+
+import pandas as pd
+
+from drapebench.cache import atomic_write
+
+# table name -> (metrics shown, metric drawn against runtime)
+TABLES = {
+    "baseline": (["eps_e", "eps_a", "eps_c"], "eps_c"),
+    "gaps_table1": (["eps_e", "eps_a", "eps_c"], "eps_c"),
+    "gaps_table2": (["eps_c"], "eps_c"),
+    "gaps_table3": (["eps_e", "eps_a"], "eps_e"),
+    "runtime": (["train_s", "ms_per_frame"], "eps_c"),
+    "physics": (["eps_e", "eps_c", "penetration_mm", "jitter", "smoothness"], "eps_c"),
+}
+METRIC_LABELS = {"eps_e": "ε_e (%)", "eps_a": "ε_a (%)", "eps_c": "ε_c (%)", "train_s": "train (s)",
+                 "ms_per_frame": "ms/frame", "penetration_mm": "pen. (mm)", "jitter": "jitter (mm)",
+                 "smoothness": "smooth.", "vertex_error_mm": "err. (mm)"}  # fmt: skip
+
+
+def collect(dirs) -> pd.DataFrame:
+    """One row per ``metrics.json`` found below ``dirs`` (a run dir or a sweep dir), with its ``run_dir``."""
+    rows = []
+    for d in dirs:
+        d = Path(d)
+        files = [d / "metrics.json"] if (d / "metrics.json").exists() else sorted(d.rglob("metrics.json"))
+        for f in files:
+            rec = json.loads(f.read_text())
+            rec["run_dir"] = str(f.parent)
+            rows.append(rec)
+    if not rows:
+        raise FileNotFoundError(f"no metrics.json below {', '.join(map(str, dirs))}; did the runs finish?")
+    return pd.DataFrame(rows)
+
+
+def table(df: pd.DataFrame, metrics: list[str], decimals: int = 3) -> pd.DataFrame:
+    """Methods x (garment, metric) table of formatted cells; repeated runs are averaged."""
+    cells = {}
+    for (method, garment), g in df.groupby(["method", "garment"], sort=False):
+        for m in metrics:
+            if m not in g:
+                continue
+            mean = g[m].mean()
+            std_col = f"{m}_std"
+            if std_col in g and pd.notna(g[std_col].mean()):
+                cells[(method, garment, m)] = f"{mean:.{decimals}f} ± {g[std_col].mean():.{decimals}f}"
+            else:
+                cells[(method, garment, m)] = f"{mean:.{decimals}f}"
+    methods = list(dict.fromkeys(df["method"]))
+    garments = list(dict.fromkeys(df["garment"]))
+    cols = pd.MultiIndex.from_tuples([(g, METRIC_LABELS.get(m, m)) for g in garments for m in metrics], names=["garment", "metric"])
+    out = pd.DataFrame(index=pd.Index(methods, name="method"), columns=cols, dtype=object)
+    for (method, garment, m), v in cells.items():
+        out.loc[method, (garment, METRIC_LABELS.get(m, m))] = v
+    return out.fillna("–")
+
+
+def provenance(df: pd.DataFrame, command: str) -> str:
+    """One line naming the command, commits, machine and date that produced the table."""
+    commits = ", ".join(sorted(set(map(str, df.get("commit", pd.Series(["unknown"]))))))
+    when = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    return f"Produced by `{command}` from runs at commit(s) {commits} on {platform.machine()} / {platform.system()} ({when})."
+
+
+def _markdown(t: pd.DataFrame) -> str:
+    flat = t.copy()
+    flat.columns = [f"{g} {m}" for g, m in t.columns]
+    return flat.to_markdown()
+
+
+def runtime_plot(df: pd.DataFrame, error: str, path: Path) -> Path:
+    """Scatter of ms/frame (log x) against an error metric, one marker per method and garment."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(5, 3.5))
+    for method, g in df.groupby("method", sort=False):
+        ax.scatter(g["ms_per_frame"], g[error], label=method, s=30)
+        for _, r in g.iterrows():
+            ax.annotate(r["garment"], (r["ms_per_frame"], r[error]), fontsize=6, alpha=0.7)
+    ax.set_xscale("log")
+    ax.set_xlabel("runtime (ms / frame)")
+    ax.set_ylabel(METRIC_LABELS.get(error, error))
+    ax.legend(fontsize=7)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    with atomic_write(path, mode=None) as tmp:
+        fig.savefig(tmp, dpi=130, format="png")
+    plt.close(fig)
+    return path
+
+
+def write_table(dirs, name: str, out: Path, command: str | None = None) -> list[Path]:
+    """Write ``out``.md/.tex/.csv and ``out``_runtime.png for table ``name``; returns the paths."""
+    if name not in TABLES:
+        raise KeyError(f"unknown table {name!r}; tables: {', '.join(TABLES)}")
+    metrics, error = TABLES[name]
+    df = collect(dirs)
+    t = table(df, metrics)
+    command = command or "python -m drapebench.report " + " ".join(sys.argv[1:])
+    prov = provenance(df, command)
+    out = Path(out)
+    paths = [out.with_suffix(".md"), out.with_suffix(".tex"), out.with_suffix(".csv"), out.parent / f"{out.name}_runtime.png"]
+    with atomic_write(paths[0], "w") as f:
+        f.write(f"# {name}\n\n{_markdown(t)}\n\n{prov}\n")
+    with atomic_write(paths[1], "w") as f:
+        f.write(f"% {prov}\n" + t.style.to_latex(hrules=True, multicol_align="c"))
+    with atomic_write(paths[2], "w") as f:
+        f.write(f"# {prov}\n")
+        t.to_csv(f)
+    runtime_plot(df, error, paths[3])
+    return paths
+
+
+def write_summary(sweep_dir: Path) -> Path:
+    """``summary.md`` and ``summary.csv`` at a sweep root: one row per finished job."""
+    from drapebench.experiment import SUMMARY_COLUMNS
+
+    df = collect([sweep_dir])
+    cols = [c for c in SUMMARY_COLUMNS if c in df] + ["run_dir"]
+    df = df[cols]
+    with atomic_write(Path(sweep_dir) / "summary.csv", "w") as f:
+        df.to_csv(f, index=False)
+    with atomic_write(Path(sweep_dir) / "summary.md", "w") as f:
+        f.write(df.drop(columns="run_dir").to_markdown(index=False, floatfmt=".4g") + "\n")
+    return Path(sweep_dir) / "summary.md"
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description="Paper-style tables from run or sweep directories.")
+    parser.add_argument("dirs", nargs="+", type=Path, help="run or sweep directories (searched for metrics.json)")
+    parser.add_argument("--table", default="baseline", choices=sorted(TABLES))
+    parser.add_argument("--out", type=Path, help="output path without suffix (default reports/<table>)")
+    args = parser.parse_args(argv)
+    for p in write_table(args.dirs, args.table, args.out or Path("reports") / args.table):
+        print(p)
+
+
+if __name__ == "__main__":
+    main()
