@@ -1,0 +1,41 @@
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from drapebench.report import collect, table, write_summary, write_table
+
+FIXTURES = Path(__file__).parent / "fixtures" / "runs"
+
+
+def test_table_layout_and_cells():
+    df = collect([FIXTURES])
+    assert len(df) == 4
+    t = table(df, ["eps_e", "eps_c"])
+    assert list(t.index) == ["lbs", "pbs"]
+    assert list(t.columns.get_level_values(0).unique()) == ["tshirt", "skirt"]
+    assert t.loc["lbs", ("tshirt", "ε_e (%)")] == "4.000"
+    assert t.loc["pbs", ("skirt", "ε_c (%)")] == "0.100 ± 0.020"  # mean +- std where the std exists
+
+
+def test_write_table_outputs_with_provenance(tmp_path):
+    paths = write_table([FIXTURES], "baseline", tmp_path / "baseline", command="pytest")
+    md, tex, csv, png = paths
+    text = md.read_text()
+    assert "lbs" in text and "Produced by `pytest`" in text and "abc123" in text
+    assert "\\begin{tabular}" in tex.read_text() and "abc123" in tex.read_text()
+    assert pd.read_csv(csv, comment="#", header=[0, 1], index_col=0).shape == (2, 6)
+    assert png.stat().st_size > 1000
+    with pytest.raises(KeyError, match="tables: baseline"):
+        write_table([FIXTURES], "nope", tmp_path / "x")
+
+
+def test_summary_and_missing_runs(tmp_path):
+    import shutil
+
+    shutil.copytree(FIXTURES, tmp_path / "sweep")
+    write_summary(tmp_path / "sweep")
+    rows = pd.read_csv(tmp_path / "sweep" / "summary.csv")
+    assert len(rows) == 4 and set(rows["method"]) == {"lbs", "pbs"}
+    with pytest.raises(FileNotFoundError, match="no metrics.json"):
+        collect([tmp_path / "empty"])
