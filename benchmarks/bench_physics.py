@@ -1,0 +1,76 @@
+"""Energy forward+backward, topology build/load, proximity with and without culling, evaluate() per frame.
+
+Run: python benchmarks/bench_physics.py  (CPU, float32, 2 threads)
+"""
+
+import time
+
+import torch
+
+from drapebench.body import load_body, make_sequence
+from drapebench.garments import make_garment
+from drapebench.geometry import topology as topo_mod
+from drapebench.geometry.proximity import culled_body_vertices, nearest_body_vertex, signed_distance
+from drapebench.geometry.topology import build_topology_arrays, get_topology
+from drapebench.metrics import evaluate
+from drapebench.physics import (
+    Material,
+    bending_energy,
+    gravity_energy,
+    inertia_energy,
+    inextensibility_energy,
+    laplacian_smoothness,
+    stvk_energy,
+)
+
+
+def best(fn, repeat=5):
+    fn()
+    out = float("inf")
+    for _ in range(repeat):
+        t = time.perf_counter()
+        fn()
+        out = min(out, time.perf_counter() - t)
+    return out
+
+
+def main():
+    body = load_body("anny")
+    g = make_garment("dress", body)  # ~5.8k vertices
+    V, F = g.vertices.numpy(), g.faces.numpy()
+    print(f"garment: dress, {g.n_vertices} vertices, {len(F)} faces")
+    print(f"topology build {best(lambda: build_topology_arrays(V, F), 3) * 1e3:.1f} ms", end="; ")
+    get_topology(V, F)
+
+    def cached():
+        topo_mod._MEMORY.clear()
+        get_topology(V, F)
+
+    print(f"cached load from disk {best(cached) * 1e3:.1f} ms")
+    mat, topo = Material(), g.topology
+    for B in (1, 16):
+        x = (g.vertices[None] + 0.001 * torch.randn(B, g.n_vertices, 3)).requires_grad_(True)
+        prev = g.vertices[None].expand(B, -1, -1)
+
+        def step():
+            e = (stvk_energy(x, topo, mat) + bending_energy(x, topo, mat, "template") + gravity_energy(x, topo, mat)
+                 + inertia_energy(x, prev, torch.zeros_like(prev), topo, mat) + 2e8 * inextensibility_energy(x, topo)
+                 + laplacian_smoothness(x, topo))  # fmt: skip
+            e.sum().backward()
+
+        print(f"all energies forward+backward, batch {B:2d}: {best(step) * 1e3:.1f} ms")
+    seq = make_sequence("walk", 30, seed=0)
+    bv, bn = seq.vertices(body), seq.vertex_normals(body)
+    x = g.vertices[None] + seq.trans[:, None]
+    cand = culled_body_vertices(g.vertices, body.v_template, body.weights)
+    t_all = best(lambda: nearest_body_vertex(x, bv, bn), 3) / seq.n_frames
+    t_cull = best(lambda: nearest_body_vertex(x, bv, bn, cand), 3) / seq.n_frames
+    print(f"nearest body vertex per frame: all {body.n_vertices} body vertices {t_all * 1e3:.2f} ms, "
+          f"culled to {len(cand)} {t_cull * 1e3:.2f} ms ({t_all / t_cull:.1f}x)")  # fmt: skip
+    print(f"exact signed distance per frame: {best(lambda: signed_distance(x[:5], bv[:5], body.faces), 2) / 5 * 1e3:.1f} ms")
+    pred = x
+    print(f"evaluate() per frame: {best(lambda: evaluate(g, seq, body, pred), 2) / seq.n_frames * 1e3:.1f} ms")
+
+
+if __name__ == "__main__":
+    main()
