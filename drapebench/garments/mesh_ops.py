@@ -85,6 +85,10 @@ def isotropic_remesh(V: np.ndarray, F: np.ndarray, target: float, iterations: in
             iterations=iterations if attempt == 0 else 3, targetlen=pymeshlab.PureValue(target), featuredeg=75,
             checksurfdist=True, maxsurfdist=pymeshlab.PureValue(0.002),
         )  # fmt: skip
+        # collapse micro-triangles the remesher can leave behind (edges of a few micrometres)
+        ms.meshing_merge_close_vertices(threshold=pymeshlab.PureValue(0.05 * target))
+        ms.meshing_remove_null_faces()
+        ms.meshing_remove_unreferenced_vertices()
         m = ms.current_mesh()
         V, F = m.vertex_matrix().astype(np.float64), m.face_matrix().astype(np.int64)
         area = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
