@@ -14,6 +14,7 @@ from methods.base import DrapeResult, DrapingMethod, FitReport
 _REGISTRY: dict[str, str] = {
     # name -> "module:Class"; imported lazily so one method's heavy deps never load for another.
     "lbs": "methods.lbs:LBSMethod",
+    "gaps": "methods.gaps:GAPS",
 }
 
 

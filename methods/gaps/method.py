@@ -1,0 +1,311 @@
+"""GAPS (Chen et al., 3DV 2024): GRU draping with RBF body-participation skinning and
+collision-aware inextensibility, self-supervised by physics losses; plus the SNUG-like and
+NCS-like ablations as configurations of the same code.
+
+Choices where the paper is silent or differs from the public code (all configurable in ``params``):
+
+* input per frame = [betas (S), pose axis-angle of all joints incl. the root (3J), root translation
+  velocity (3)], **not normalised** (the GAPS code; SNUG's shipped models normalise:
+  ``normalize_inputs: true``);
+* 4 GRU layers of 256 (tanh), a linear layer to V x 3 canonical displacements added to the template;
+* skinning weights from RBF body participation with the code's constant k = 0.25 (paper: 0.5),
+  trainable and unconstrained as in the code (``trainable_weights``);
+* training windows of 3 consecutive frames; GRU state drawn from N(0, 0.1^2) in training, zeros at
+  inference; strain/bending/gravity/collision/inextensibility summed over the 3 frames, inertia
+  once on the last frame against stop_gradient(2 x1 - x0); every term divided by the batch size;
+* loss weights: collision 250 (eps 2 mm), inextensibility 2e8, k_ext = 1 + min(10 d_c, 0.03) x
+  min(epoch, kext_ramp_epochs) with d_c = max(eps - d, 0) (paper: ramp over 100 epochs);
+* bending blends flat and template angles per edge by the min-max-normalised rest distance of the
+  edge to the body (paper Eq. 12);
+* Adam, lr 1e-3 for the first ``lr_switch_epoch`` (10) epochs, then 1e-4;
+* random body shapes: the first 4 betas U(-2, 2) per window, the rest 0 (the code's SMPL recipe on
+  our PCA betas).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import torch
+
+from drapebench.body.lbs import lbs
+from drapebench.cache import atomic_write, cache_dir, content_hash
+from drapebench.geometry.ops import vertex_normals
+from drapebench.geometry.proximity import culled_body_vertices, nearest_body_vertex
+from drapebench.physics import (
+    bending_energy,
+    collision_energy,
+    gravity_energy,
+    inextensibility_energy,
+    stvk_energy,
+)
+from drapebench.progress import progress
+from methods.base import DrapeResult, DrapingMethod, FitReport
+from methods.gaps.skinning import nearest_indices, nearest_weights, rbf_weights, smoothed_weights
+
+METHOD_DEFAULTS = dict(
+    skinning="rbf",  # rbf | nearest | smoothed
+    rbf_k=0.25,
+    smooth_iterations=10,
+    trainable_weights=True,
+    shape_blendshape=False,  # SNUG: the garment copies the body's shape blend shape at the nearest vertex
+    inextensibility_weight=2e8,
+    kext="collision",  # collision | one
+    collision_weight=250.0,
+    collision_eps=2e-3,
+    bending="blend",  # blend | flat | template
+    single_shape=False,  # NCS: train on the mean body only
+    normalize_inputs=False,
+    hidden=256,
+    layers=4,
+)
+TRAIN_DEFAULTS = dict(
+    epochs=1000, batch_size=16, window=3, lr=1e-3, lr_after=1e-4, lr_switch_epoch=10, kext_ramp_epochs=100,
+    hidden_init_std=0.1, random_betas=4, beta_range=2.0, max_minutes=None, checkpoint_every=200, log_every=10,
+)
+
+
+class GapsNet(torch.nn.Module):
+    """GRU regressor: (B, T, in) -> (B, T, V*3) canonical displacements; returns the new hidden state too."""
+
+    def __init__(self, n_in: int, n_out: int, hidden: int = 256, layers: int = 4):
+        super().__init__()
+        self.gru = torch.nn.GRU(n_in, hidden, num_layers=layers, batch_first=True)
+        self.out = torch.nn.Linear(hidden, n_out)
+
+    def forward(self, x: torch.Tensor, h0: torch.Tensor | None = None):
+        y, h = self.gru(x, h0)
+        return self.out(y), h
+
+
+class GAPS(DrapingMethod):
+    """GAPS and its ablations (see the module docstring for every reading of the paper)."""
+
+    name = "gaps"
+    generic = False
+    needs_reference = False
+
+    def __init__(self, cfg=None):
+        super().__init__(cfg)
+        unknown = set(self.cfg) - set(METHOD_DEFAULTS)
+        if unknown:
+            raise ValueError(f"unknown gaps parameter(s) {sorted(unknown)}; valid: {sorted(METHOD_DEFAULTS)}")
+        self.p = {**METHOD_DEFAULTS, **self.cfg}
+        self.net = None
+        self.weights = None
+        self.template = None
+        self.garment_key = None
+
+    # ------------------------------------------------------------------ garment set-up
+    def _setup(self, garment) -> None:
+        """Per-garment constants: template, skinning weights, bending blend, nearest body vertices, culling."""
+        body, p = self.body, self.p
+        with torch.no_grad():
+            rest_body = body.shaped(garment.betas[None, : body.n_betas])[0][0]
+        self.template = garment.vertices.to(body.dtype)
+        self.topology = garment.topology
+        self.nn_rest = nearest_indices(self.template, rest_body)
+        if p["skinning"] == "rbf":
+            w = rbf_weights(self.template, rest_body, body.weights, p["rbf_k"])
+        elif p["skinning"] in ("nearest", "smoothed"):
+            w = nearest_weights(self.template, rest_body, body.weights)
+            if p["skinning"] == "smoothed":
+                w = smoothed_weights(w, garment.topology, p["smooth_iterations"])
+        else:
+            raise ValueError(f"skinning must be rbf, nearest or smoothed, not {p['skinning']!r}")
+        if self.weights is None or self.weights.shape != w.shape:
+            self.weights = torch.nn.Parameter(w, requires_grad=p["trainable_weights"])
+        dist = (self.template - rest_body[self.nn_rest]).norm(dim=-1)
+        edge_d = dist[garment.topology.hinge_edges].mean(-1)
+        self.bend_blend = (edge_d - edge_d.min()) / (edge_d.max() - edge_d.min()).clamp_min(1e-9)
+        self.candidates = culled_body_vertices(self.template, rest_body, body.weights)
+        self.garment_betas = garment.betas[: body.n_betas].to(body.dtype)
+        self.n_in = body.n_betas + 3 * body.n_joints + 3
+        if self.net is None:
+            self.net = GapsNet(self.n_in, 3 * garment.n_vertices, p["hidden"], p["layers"])
+            self.input_mean = torch.zeros(self.n_in)
+            self.input_std = torch.ones(self.n_in)
+        self.garment_key = content_hash(garment.vertices, garment.faces)
+
+    # ------------------------------------------------------------------ forward model
+    def _inputs(self, betas: torch.Tensor, poses: torch.Tensor, vel: torch.Tensor) -> torch.Tensor:
+        """(B, T, S + 3J + 3) network input from betas (B, S), poses (B, T, J, 3), root velocity (B, T, 3) m/s."""
+        B, T = poses.shape[:2]
+        x = torch.cat([betas[:, None].expand(B, T, -1), poses.reshape(B, T, -1), vel], -1)
+        return (x - self.input_mean) / self.input_std if self.p["normalize_inputs"] else x
+
+    def _canonical(self, delta: torch.Tensor, betas: torch.Tensor) -> torch.Tensor:
+        """Template + displacements (B, T, V, 3) (+ the body's shape blend shape for SNUG-like)."""
+        x = self.template + delta.reshape(*delta.shape[:2], -1, 3)
+        if self.p["shape_blendshape"]:
+            dirs = self.body.shapedirs[self.nn_rest]  # (V, 3, S)
+            x = x + torch.einsum("vcs,bs->bvc", dirs, betas - self.garment_betas)[:, None]
+        return x
+
+    # ------------------------------------------------------------------ training
+    def fit(self, data, train_cfg=None) -> FitReport:
+        """Self-supervised training on ``data.train_sequences`` (see the module docstring)."""
+        self.bind(data.body, data.material)
+        tp = {**TRAIN_DEFAULTS, **dict((train_cfg or {}).get("params", {}))}
+        seed = int((train_cfg or {}).get("seed", 0))
+        torch.manual_seed(seed)  # before the network is created: initial weights follow the seed
+        self._setup(data.garment)
+        unknown = set(tp) - set(TRAIN_DEFAULTS)
+        if unknown:
+            raise ValueError(f"unknown gaps training parameter(s) {sorted(unknown)}; valid: {sorted(TRAIN_DEFAULTS)}")
+        seqs = data.train_sequences
+        if not seqs:
+            raise ValueError("gaps needs training sequences (train.dataset)")
+        rng = np.random.default_rng(seed)
+        W = tp["window"]
+        windows = [(i, t) for i, s in enumerate(seqs) for t in range(1, s.n_frames - W + 1)]
+        poses = [s.poses.to(self.body.dtype) for s in seqs]
+        vels = [torch.cat([torch.zeros(1, 3), (s.trans[1:] - s.trans[:-1]) * s.fps]).to(self.body.dtype) for s in seqs]
+        trans = [s.trans.to(self.body.dtype) for s in seqs]
+        if self.p["normalize_inputs"]:
+            allx = torch.cat([torch.cat([p.reshape(len(p), -1), v], -1) for p, v in zip(poses, vels)])
+            self.input_mean[self.body.n_betas :] = allx.mean(0)
+            self.input_std[self.body.n_betas :] = allx.std(0).clamp_min(1e-3)
+        params = list(self.net.parameters()) + ([self.weights] if self.weights.requires_grad else [])
+        opt = torch.optim.Adam(params, lr=tp["lr"])
+        steps_per_epoch = max(1, math.ceil(len(windows) / tp["batch_size"]))
+        total_steps = steps_per_epoch * int(tp["epochs"])
+        resume = cache_dir("checkpoints") / f"gaps_partial_{content_hash(self.p, tp, seed, self.garment_key, len(windows))}.pt"
+        step, history, t_prev = 0, [], 0.0
+        if resume.exists():
+            st = torch.load(resume, map_location="cpu", weights_only=False)
+            self.load_state_dict(st["method"])
+            opt.load_state_dict(st["opt"])
+            step, history, t_prev = st["step"], st["history"], st["train_s"]
+            rng = st["rng"]
+            torch.set_rng_state(st["torch_rng"])
+        t0 = time.perf_counter()
+        deadline = None if tp["max_minutes"] is None else tp["max_minutes"] * 60 - t_prev
+        bar = progress(total=total_steps, initial=step, desc="gaps", unit="step")
+        order = rng.permutation(len(windows))
+        while step < total_steps:
+            epoch = step // steps_per_epoch
+            k = step % steps_per_epoch
+            if k == 0:
+                order = rng.permutation(len(windows))
+            for g in opt.param_groups:
+                g["lr"] = tp["lr"] if epoch < tp["lr_switch_epoch"] else tp["lr_after"]
+            batch = [windows[j] for j in order[k * tp["batch_size"] : (k + 1) * tp["batch_size"]]]
+            losses = self._train_step(batch, poses, vels, trans, seqs, epoch, tp, rng, opt)
+            step += 1
+            history.append({"step": step, "epoch": epoch, **losses})
+            if step % tp["log_every"] == 0:
+                bar.set_postfix({k_: f"{v:.3g}" for k_, v in losses.items()})
+            bar.update(1)
+            elapsed = time.perf_counter() - t0
+            if step % tp["checkpoint_every"] == 0 or step == total_steps:
+                with atomic_write(resume, mode=None) as tmp:
+                    torch.save({"method": self.state_dict(), "opt": opt.state_dict(), "step": step, "history": history,
+                                "train_s": t_prev + elapsed, "rng": rng, "torch_rng": torch.get_rng_state()}, tmp)  # fmt: skip
+            if deadline is not None and elapsed > deadline:
+                break
+        bar.close()
+        resume.unlink(missing_ok=True)
+        return FitReport(train_s=t_prev + time.perf_counter() - t0, n_steps=step,
+                         final_losses=history[-1] if history else {}, history=history)  # fmt: skip
+
+    def _train_step(self, batch, poses, vels, trans, seqs, epoch, tp, rng, opt) -> dict:
+        body, mat, p = self.body, self.material, self.p
+        B, W = len(batch), tp["window"]
+        betas = torch.zeros(B, body.n_betas, dtype=body.dtype)
+        if not p["single_shape"]:
+            betas[:, : tp["random_betas"]] = torch.as_tensor(rng.uniform(-tp["beta_range"], tp["beta_range"], (B, tp["random_betas"])), dtype=body.dtype)
+        pose = torch.stack([poses[i][t : t + W] for i, t in batch])
+        vel = torch.stack([vels[i][t : t + W] for i, t in batch])
+        tr = torch.stack([trans[i][t : t + W] for i, t in batch])
+        with torch.no_grad():
+            out = body.forward(betas.repeat_interleave(W, 0), pose.reshape(B * W, -1, 3), tr.reshape(B * W, 3))
+            normals = vertex_normals(out.vertices, body.faces)
+        h0 = torch.randn(p["layers"], B, p["hidden"], dtype=body.dtype) * tp["hidden_init_std"]
+        delta, _ = self.net(self._inputs(betas, pose, vel), h0)
+        xc = self._canonical(delta, betas).reshape(B * W, -1, 3)
+        x = lbs(xc, self.weights, out.transforms)  # (B*W, V, 3)
+        nn = nearest_body_vertex(x, out.vertices, normals, self.candidates)
+        topo = self.topology
+        blend = self.bend_blend if p["bending"] == "blend" else None
+        rest_angle = "template" if p["bending"] == "template" else "flat"
+        terms = {
+            "strain": stvk_energy(x, topo, mat).sum() / B,
+            "bending": bending_energy(x, topo, mat, rest_angle=rest_angle, blend=blend).sum() / B,
+            "gravity": gravity_energy(x, topo, mat).sum() / B,
+            "collision": p["collision_weight"] * collision_energy(x, nn.point, nn.normal, p["collision_eps"]).sum() / B,
+        }
+        xw = x.reshape(B, W, -1, 3)
+        x_hat = (2 * xw[:, -2] - xw[:, -3]).detach()
+        m = topo.vertex_masses(mat)
+        terms["inertia"] = (0.5 * m * ((xw[:, -1] - x_hat) ** 2).sum(-1)).sum() / (mat.dt**2) / B
+        if p["inextensibility_weight"] > 0:
+            if p["kext"] == "collision":
+                d_c = torch.relu(p["collision_eps"] - nn.distance.detach())
+                k_ext = 1.0 + torch.clamp(10.0 * d_c, max=0.03) * min(epoch, tp["kext_ramp_epochs"])
+            elif p["kext"] == "one":
+                k_ext = torch.ones(1, dtype=x.dtype)
+            else:
+                raise ValueError(f"kext must be 'collision' or 'one', not {p['kext']!r}")
+            self.last_kext_max = float(k_ext.max())
+            terms["inext"] = p["inextensibility_weight"] * inextensibility_energy(x, topo, k_ext).sum() / B
+        loss = sum(terms.values())
+        if not torch.isfinite(loss):
+            raise FloatingPointError(f"gaps: non-finite loss at epoch {epoch}: { {k: float(v) for k, v in terms.items()} }")
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        opt.step()
+        return {"loss": loss.item(), **{k: v.item() for k, v in terms.items()}}
+
+    # ------------------------------------------------------------------ inference
+    def drape(self, garment, seq) -> DrapeResult:
+        """Drape all frames: one GRU pass (state carried, zeros at start), the output layer and skinning batched over frames."""
+        self._require_bound()
+        if self.net is None:
+            raise RuntimeError("gaps: not trained; call fit() or load_state_dict() first")
+        if self.net.out.out_features != 3 * garment.n_vertices:
+            raise ValueError(f"gaps: this model was trained for a {self.net.out.out_features // 3}-vertex garment, not {garment.n_vertices}")
+        if getattr(self, "template", None) is None or content_hash(garment.vertices, garment.faces) != self.garment_key:
+            self._setup(garment)  # per-garment constants (after load_state_dict); learned weights are kept
+        t0 = time.perf_counter()
+        transforms = seq.transforms(self.body)
+        betas = seq.betas[None, : self.body.n_betas].to(self.body.dtype)
+        vel = torch.cat([torch.zeros(1, 3), (seq.trans[1:] - seq.trans[:-1]) * seq.fps])[None].to(self.body.dtype)
+        t1 = time.perf_counter()
+        with torch.inference_mode():
+            delta, _ = self.net(self._inputs(betas, seq.poses[None].to(self.body.dtype), vel))
+            t2 = time.perf_counter()
+            xc = self._canonical(delta, betas)[0]
+            x = lbs(xc, self.weights, transforms)
+        t3 = time.perf_counter()
+        ms = lambda a, b: (b - a) * 1e3  # noqa: E731
+        return DrapeResult(x.clone(), {"body": ms(t0, t1), "network": ms(t1, t2), "skinning": ms(t2, t3)})
+
+    def forward_sequence(self, garment, seq, h0=None):
+        """Differentiable drape (T, V, 3) and final hidden state, for tests and fine-tuning."""
+        betas = seq.betas[None, : self.body.n_betas].to(self.body.dtype)
+        vel = torch.cat([torch.zeros(1, 3), (seq.trans[1:] - seq.trans[:-1]) * seq.fps])[None].to(self.body.dtype)
+        delta, h = self.net(self._inputs(betas, seq.poses[None].to(self.body.dtype), vel), h0)
+        return lbs(self._canonical(delta, betas)[0], self.weights, seq.transforms(self.body)), h
+
+    # ------------------------------------------------------------------ state
+    def state_dict(self) -> dict:
+        if self.net is None:
+            return {}
+        return {"net": self.net.state_dict(), "weights": self.weights.detach().clone(), "input_mean": self.input_mean,
+                "input_std": self.input_std, "params": dict(self.p), "garment_key": self.garment_key,
+                "n_in": self.n_in, "n_out": self.net.out.out_features}  # fmt: skip
+
+    def load_state_dict(self, state) -> None:
+        if not state:
+            return
+        if state["params"] != self.p:
+            raise ValueError(f"gaps checkpoint was trained with {state['params']}, not {self.p}")
+        if self.net is None:
+            self.net = GapsNet(state["n_in"], state["n_out"], self.p["hidden"], self.p["layers"])
+        self.net.load_state_dict(state["net"])
+        self.weights = torch.nn.Parameter(state["weights"].clone(), requires_grad=self.p["trainable_weights"])
+        self.input_mean, self.input_std = state["input_mean"], state["input_std"]
+        self.garment_key = state["garment_key"]
