@@ -1,38 +1,28 @@
 """Body forward, sequence generation and h5 I/O timings (CPU, float32). Run: python benchmarks/bench_body.py"""
 
 import tempfile
-import time
 from pathlib import Path
 
 import torch
+from timing import best
 
 from drapebench.body import BodySequence, load_body, make_sequence
-
-
-def timeit(fn, repeat=3):
-    fn()
-    best = float("inf")
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t)
-    return best
 
 
 def main():
     print(f"torch {torch.__version__}, threads {torch.get_num_threads()}")
     seq = make_sequence("walk", n_frames=285, seed=0, betas=torch.randn(10))
-    print(f"sequence generation (walk, {seq.n_frames} frames): {timeit(lambda: make_sequence('walk', 285, seed=0)) * 1e3:.1f} ms")
+    print(f"sequence generation (walk, {seq.n_frames} frames): {best(lambda: make_sequence('walk', 285, seed=0)) * 1e3:.1f} ms")
     for name in ("anny", "anny_lowres"):
         body = load_body(name)
         b = seq.betas[None]
         with torch.no_grad():
-            t = timeit(lambda: body.forward(b, seq.poses, seq.trans))
+            t = best(lambda: body.forward(b, seq.poses, seq.trans))
         print(f"body forward {name:12s} V={body.n_vertices:6d}: {seq.n_frames} frames in {t * 1e3:7.1f} ms ({t / seq.n_frames * 1e3:.3f} ms/frame)")
     with tempfile.TemporaryDirectory() as d:
         path = Path(d) / "s.h5"
-        tw = timeit(lambda: seq.save(path))
-        tr = timeit(lambda: BodySequence.load(path))
+        tw = best(lambda: seq.save(path))
+        tr = best(lambda: BodySequence.load(path))
         print(f"h5 write {tw * 1e3:.1f} ms, read {tr * 1e3:.1f} ms ({path.stat().st_size / 1e3:.0f} kB)")
 
 

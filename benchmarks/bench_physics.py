@@ -3,9 +3,9 @@
 Run: python benchmarks/bench_physics.py  (CPU, float32, 2 threads)
 """
 
-import time
 
 import torch
+from timing import best
 
 from drapebench.body import load_body, make_sequence
 from drapebench.garments import make_garment
@@ -22,16 +22,6 @@ from drapebench.physics import (
     laplacian_smoothness,
     stvk_energy,
 )
-
-
-def best(fn, repeat=5):
-    fn()
-    out = float("inf")
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        out = min(out, time.perf_counter() - t)
-    return out
 
 
 def main():

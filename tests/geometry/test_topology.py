@@ -6,17 +6,7 @@ import trimesh
 from drapebench.geometry import dihedral_angles, get_topology
 from drapebench.geometry.topology import build_topology_arrays
 from drapebench.physics import Material
-
-
-def grid(n=6, h=0.1):
-    xs, ys = np.meshgrid(np.arange(n) * h, np.arange(n) * h)
-    V = np.stack([xs.ravel(), ys.ravel(), np.zeros(n * n)], 1)
-    F = []
-    for i in range(n - 1):
-        for j in range(n - 1):
-            a, b, c, d = i * n + j, i * n + j + 1, (i + 1) * n + j, (i + 1) * n + j + 1
-            F += [[a, b, d], [a, d, c]]
-    return V, np.array(F)
+from tests.meshes import grid_mesh
 
 
 def test_dihedral_of_folded_pair():
@@ -36,7 +26,7 @@ def test_dihedral_of_folded_pair():
 
 
 def test_cot_laplacian_of_flat_grid_vanishes_inside():
-    V, F = grid()
+    V, F = grid_mesh(6, 0.5)
     topo = get_topology(V, F, dtype=torch.float64, cache=False)
     LX = torch.sparse.mm(topo.laplacian, torch.as_tensor(V))
     boundary = torch.cat(topo.boundary_loops)
@@ -75,7 +65,7 @@ def test_rest_inverse_shape_matches_flattened_triangle():
 
 def test_cache_round_trip_and_bad_meshes(tmp_path, monkeypatch):
     monkeypatch.setenv("DRAPEBENCH_DATA", str(tmp_path))
-    V, F = grid(4)
+    V, F = grid_mesh(4, 0.3)
     a = get_topology(V + 1.0, F)
     from drapebench.geometry import topology as mod
 

@@ -20,20 +20,9 @@ from drapebench.physics import (
     stvk_energy,
     validate_mesh_state,
 )
+from tests.meshes import grid_mesh
 
 MAT = Material()
-
-
-def wavy_sheet(n=5, seed=0):
-    rng = np.random.default_rng(seed)
-    xs, ys = np.meshgrid(np.linspace(0, 0.2, n), np.linspace(0, 0.2, n))
-    V = np.stack([xs.ravel(), ys.ravel(), 0.01 * rng.normal(size=n * n)], 1)
-    F = []
-    for i in range(n - 1):
-        for j in range(n - 1):
-            a, b, c, d = i * n + j, i * n + j + 1, (i + 1) * n + j, (i + 1) * n + j + 1
-            F += [[a, b, d], [a, d, c]]
-    return V, np.array(F)
 
 
 def rotation(seed=0):
@@ -43,7 +32,7 @@ def rotation(seed=0):
 
 @pytest.fixture(scope="module")
 def sheet():
-    V, F = wavy_sheet()
+    V, F = grid_mesh(5, 0.2, noise=0.01)
     return torch.as_tensor(V), get_topology(V, F, dtype=torch.float64, cache=False)
 
 
@@ -104,7 +93,7 @@ def test_closed_form_stvk_uniform_stretch():
 
 
 def test_against_per_element_loops():
-    V, F = wavy_sheet(4, seed=2)
+    V, F = grid_mesh(4, 0.2, noise=0.01, seed=2)
     topo = get_topology(V, F, dtype=torch.float64, cache=False)
     x = torch.as_tensor(V) + 0.01 * torch.randn(len(V), 3, dtype=torch.float64)
     X = x.numpy()
