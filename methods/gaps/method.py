@@ -8,6 +8,8 @@ Choices where the paper is silent or differs from the public code (all configura
   velocity (3)], **not normalised** (the GAPS code; SNUG's shipped models normalise:
   ``normalize_inputs: true``);
 * 4 GRU layers of 256 (tanh), a linear layer to V x 3 canonical displacements added to the template;
+  the output layer starts at zero (``zero_init_output``), so training starts from the skinned
+  template; the paper does not say, and Keras' default init starts tens of centimetres off it;
 * skinning weights from RBF body participation with the code's constant k = 0.25 (paper: 0.5),
   trainable and unconstrained as in the code (``trainable_weights``);
 * training windows of 3 consecutive frames; GRU state drawn from N(0, 0.1^2) in training, zeros at
@@ -60,6 +62,7 @@ METHOD_DEFAULTS = dict(
     normalize_inputs=False,
     hidden=256,
     layers=4,
+    zero_init_output=True,
 )
 TRAIN_DEFAULTS = dict(
     epochs=1000, batch_size=16, window=3, lr=1e-3, lr_after=1e-4, lr_switch_epoch=10, kext_ramp_epochs=100,
@@ -70,10 +73,13 @@ TRAIN_DEFAULTS = dict(
 class GapsNet(torch.nn.Module):
     """GRU regressor: (B, T, in) -> (B, T, V*3) canonical displacements; returns the new hidden state too."""
 
-    def __init__(self, n_in: int, n_out: int, hidden: int = 256, layers: int = 4):
+    def __init__(self, n_in: int, n_out: int, hidden: int = 256, layers: int = 4, zero_init_output: bool = True):
         super().__init__()
         self.gru = torch.nn.GRU(n_in, hidden, num_layers=layers, batch_first=True)
         self.out = torch.nn.Linear(hidden, n_out)
+        if zero_init_output:  # start from the skinned template instead of displacements of tens of cm
+            torch.nn.init.zeros_(self.out.weight)
+            torch.nn.init.zeros_(self.out.bias)
 
     def forward(self, x: torch.Tensor, h0: torch.Tensor | None = None):
         y, h = self.gru(x, h0)
@@ -124,7 +130,7 @@ class GAPS(DrapingMethod):
         self.garment_betas = garment.betas[: body.n_betas].to(body.dtype)
         self.n_in = body.n_betas + 3 * body.n_joints + 3
         if self.net is None:
-            self.net = GapsNet(self.n_in, 3 * garment.n_vertices, p["hidden"], p["layers"])
+            self.net = GapsNet(self.n_in, 3 * garment.n_vertices, p["hidden"], p["layers"], p["zero_init_output"])
             self.input_mean = torch.zeros(self.n_in)
             self.input_std = torch.ones(self.n_in)
         self.garment_key = content_hash(garment.vertices, garment.faces)
@@ -304,7 +310,7 @@ class GAPS(DrapingMethod):
         if state["params"] != self.p:
             raise ValueError(f"gaps checkpoint was trained with {state['params']}, not {self.p}")
         if self.net is None:
-            self.net = GapsNet(state["n_in"], state["n_out"], self.p["hidden"], self.p["layers"])
+            self.net = GapsNet(state["n_in"], state["n_out"], self.p["hidden"], self.p["layers"], self.p["zero_init_output"])
         self.net.load_state_dict(state["net"])
         self.weights = torch.nn.Parameter(state["weights"].clone(), requires_grad=self.p["trainable_weights"])
         self.input_mean, self.input_std = state["input_mean"], state["input_std"]
