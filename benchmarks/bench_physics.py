@@ -51,12 +51,15 @@ def main():
         print(f"all energies forward+backward, batch {B:2d}: {best(step) * 1e3:.1f} ms")
     seq = make_sequence("walk", 30, seed=0)
     bv, bn = seq.vertices(body), seq.vertex_normals(body)
+    for kind in ("dress", "skirt", "shorts"):
+        gk = make_garment(kind, body)
+        xk = gk.vertices[None] + seq.trans[:, None]
+        cand = culled_body_vertices(gk.vertices, body.v_template, body.weights)
+        t_all = best(lambda: nearest_body_vertex(xk, bv, bn), 3) / seq.n_frames
+        t_cull = best(lambda: nearest_body_vertex(xk, bv, bn, cand), 3) / seq.n_frames
+        print(f"nearest body vertex per frame, {kind}: all {body.n_vertices} body vertices {t_all * 1e3:.2f} ms, "
+              f"culled to {len(cand)} {t_cull * 1e3:.2f} ms ({t_all / t_cull:.1f}x)")  # fmt: skip
     x = g.vertices[None] + seq.trans[:, None]
-    cand = culled_body_vertices(g.vertices, body.v_template, body.weights)
-    t_all = best(lambda: nearest_body_vertex(x, bv, bn), 3) / seq.n_frames
-    t_cull = best(lambda: nearest_body_vertex(x, bv, bn, cand), 3) / seq.n_frames
-    print(f"nearest body vertex per frame: all {body.n_vertices} body vertices {t_all * 1e3:.2f} ms, "
-          f"culled to {len(cand)} {t_cull * 1e3:.2f} ms ({t_all / t_cull:.1f}x)")  # fmt: skip
     print(f"exact signed distance per frame: {best(lambda: signed_distance(x[:5], bv[:5], body.faces), 2) / 5 * 1e3:.1f} ms")
     pred = x
     print(f"evaluate() per frame: {best(lambda: evaluate(g, seq, body, pred), 2) / seq.n_frames * 1e3:.1f} ms")

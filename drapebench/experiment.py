@@ -84,7 +84,7 @@ def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict):
 def run(cfg: DictConfig, out_dir: str | Path | None = None) -> dict:
     """Run one experiment described by ``cfg``; returns the flat metrics record."""
     from drapebench.body import load_body, make_sequence
-    from drapebench.body.dataset import load_dataset
+    from drapebench.body.dataset import build_dataset, load_dataset
     from drapebench.garments import make_garment
     from drapebench.metrics import evaluate
     from drapebench.physics import Material
@@ -105,7 +105,7 @@ def run(cfg: DictConfig, out_dir: str | Path | None = None) -> dict:
     t = time.perf_counter()
     body = load_body(cfg.body.name, device=cfg.device)
     material = Material.from_config(OmegaConf.to_container(cfg.material, resolve=True))
-    garment = make_garment(cfg.garment.kind, body, seed=int(cfg.garment.seed), **cfg.garment.params)
+    garment = make_garment(cfg.garment.kind, body, seed=int(cfg.garment.seed), cache=not cfg.force, **cfg.garment.params)
     m = cfg.motion
     seq = make_sequence(m.name, int(m.n_frames), float(m.fps), int(m.seed), betas=None if m.betas is None else list(m.betas),
                         transition=int(m.transition), split="test", **m.params)  # fmt: skip
@@ -115,7 +115,10 @@ def run(cfg: DictConfig, out_dir: str | Path | None = None) -> dict:
 
     method = method_cls(OmegaConf.to_container(cfg.method.params, resolve=True))
     train_cfg = OmegaConf.to_container(cfg.train, resolve=True)
-    data = TrainData(body=body, material=material, garment=garment, load_train=lambda: load_dataset(cfg.train.dataset), test_sequences=[seq])
+    def load_train():
+        return load_dataset(build_dataset(cfg.train.dataset, force=cfg.force))
+
+    data = TrainData(body=body, material=material, garment=garment, load_train=load_train, test_sequences=[seq])
     train_s, ckpt = _checkpoint(method, cfg, garment, data, train_cfg)
 
     t = time.perf_counter()

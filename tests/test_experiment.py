@@ -84,3 +84,13 @@ def test_second_run_reuses_the_cache_and_interrupted_runs_leave_no_metrics(tmp_p
         run(bad, tmp_path / "b")
     assert not (tmp_path / "b" / "metrics.json").exists()
     assert not list((tmp_path / "b").glob(".*.tmp"))
+
+
+@pytest.mark.slow
+def test_submitit_local_launcher_runs_a_sweep(tmp_path):
+    pytest.importorskip("hydra_plugins.hydra_submitit_launcher")
+    sweep = tmp_path / "sweep"
+    p = run_py(["-m", "hydra/launcher=submitit_local", *FAST, "garment=skirt,pants", "viz=none", f"hydra.sweep.dir={sweep}"],
+               tmp_path, timeout=600)  # fmt: skip
+    assert p.returncode == 0, p.stderr[-3000:]
+    assert len((sweep / "summary.csv").read_text().strip().splitlines()) == 3
