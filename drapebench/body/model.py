@@ -31,7 +31,7 @@ class BodyOutput:
     rest_joints (B, J, 3) joint positions of the shaped rest body.
     """
 
-    vertices: torch.Tensor
+    vertices: torch.Tensor | None
     joints: torch.Tensor
     transforms: torch.Tensor
     rest_joints: torch.Tensor
@@ -129,6 +129,7 @@ class BodyModel(torch.nn.Module):
         betas: torch.Tensor | None = None,
         pose: torch.Tensor | None = None,
         trans: torch.Tensor | None = None,
+        skin: bool = True,
     ) -> BodyOutput:
         """Pose the body.
 
@@ -137,6 +138,7 @@ class BodyModel(torch.nn.Module):
                 A single row is broadcast over the batch.
             pose: (B, J, 3) or (B, J*3) axis-angle per joint (radians); None = rest pose.
             trans: (B, 3) root translation (metres) added after skinning; None = zero.
+            skin: False skips the vertices (``vertices`` is None) when only joints/transforms are needed.
         Returns:
             :class:`BodyOutput` with (B, V, 3) vertices, (B, J, 3) joints, (B, J, 4, 4) transforms.
         """
@@ -148,6 +150,13 @@ class BodyModel(torch.nn.Module):
         trans = self._trans(trans, batch)
         betas = self._betas(betas, batch)
 
+        if not skin:
+            j_rest = torch.einsum("jv,bvc->bjc", self.J_regressor, self.shaped(betas)[0])
+            j_rest = j_rest.expand(batch, -1, -1) if j_rest.shape[0] != batch else j_rest
+            G = self.global_transforms(axis_angle_to_matrix(pose), j_rest)
+            A = G.clone()
+            A[..., :3, 3] = G[..., :3, 3] - torch.einsum("bjkl,bjl->bjk", G[..., :3, :3], j_rest) + trans[:, None]
+            return BodyOutput(vertices=None, joints=G[..., :3, 3] + trans[:, None], transforms=A, rest_joints=j_rest)
         v_shaped, j_rest = self.shaped(betas)
         if v_shaped.shape[0] != batch:
             v_shaped, j_rest = v_shaped.expand(batch, -1, -1), j_rest.expand(batch, -1, -1)

@@ -94,8 +94,18 @@ class BodySequence:
         return self.body_output(body).joints
 
     def transforms(self, body: BodyModel) -> torch.Tensor:
-        """Skinning transforms (T, J, 4, 4), translation included."""
-        return self.body_output(body).transforms
+        """Skinning transforms (T, J, 4, 4), translation included (without posing the vertices unless already done)."""
+        full = ("out", id(body), body.name, body.dtype, str(body.device))
+        if full in self._cache:
+            return self._cache[full].transforms
+        key = ("transforms", id(body), body.name, body.dtype, str(body.device))
+        if key not in self._cache:
+            with torch.no_grad():
+                self._cache[key] = body.forward(
+                    self.betas[None, : body.n_betas].to(body.device, body.dtype), self.poses.to(body.device, body.dtype),
+                    self.trans.to(body.device, body.dtype), skin=False,
+                ).transforms  # fmt: skip
+        return self._cache[key]
 
     def slice(self, start: int, stop: int | None = None) -> "BodySequence":
         """Frames [start, stop) as a new sequence (the transition count is clipped to what remains)."""
