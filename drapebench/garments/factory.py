@@ -33,7 +33,7 @@ TOPS = ("tshirt", "tank", "longsleeve")
 LOOSE = ("skirt", "dress", "gown")
 LEGS = ("pants", "shorts")
 GARMENT_KINDS = TOPS + LOOSE + LEGS
-VERSION = 4  # bump to invalidate cached garments when the construction changes
+VERSION = 6  # bump to invalidate cached garments when the construction changes
 
 DEFAULTS = {
     "tshirt": dict(ease=0.02, length=0.8, sleeve=0.45, closing=0.04, neck_drop=0.035),

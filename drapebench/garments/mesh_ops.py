@@ -71,18 +71,39 @@ def keep_component_near(V: np.ndarray, F: np.ndarray, seed: np.ndarray) -> tuple
     return remove_unreferenced(V, F[lab == lab[faces_of_v[0]]])
 
 
+def smooth_boundaries(V: np.ndarray, F: np.ndarray, iterations: int = 2) -> np.ndarray:
+    """Relax every boundary loop along itself (each vertex towards the mean of its two loop
+    neighbours, weight 1/2): removes the zig-zag a remesher leaves on curved openings (sleeve holes)."""
+    from drapebench.geometry.topology import boundary_loops
+
+    V = V.copy()
+    loops = boundary_loops(F)
+    for _ in range(iterations):
+        for lp in loops:
+            V[lp] = 0.5 * V[lp] + 0.25 * (V[np.roll(lp, 1)] + V[np.roll(lp, -1)])
+    return V
+
+
 def isotropic_remesh(V: np.ndarray, F: np.ndarray, target: float, iterations: int = 10) -> tuple[np.ndarray, np.ndarray]:
     """pymeshlab isotropic explicit remeshing to mean edge length ``target`` (m); boundaries are
-    resampled but kept on the cut (surface distance checked within 2 mm)."""
+    resampled but kept on the cut (surface distance checked within 2 mm), then relaxed along
+    themselves and remeshed once more so boundary triangles stay well shaped."""
     import pymeshlab
 
     ms = pymeshlab.MeshSet()
     ms.add_mesh(pymeshlab.Mesh(V.astype(np.float64), F.astype(np.int32)))
     ms.meshing_remove_duplicate_vertices()
     ms.meshing_remove_null_faces()
+    ms.meshing_isotropic_explicit_remeshing(
+        iterations=iterations, targetlen=pymeshlab.PureValue(target), featuredeg=75,
+        checksurfdist=True, maxsurfdist=pymeshlab.PureValue(0.002),
+    )  # fmt: skip
+    m = ms.current_mesh()
+    F0 = m.face_matrix().astype(np.int64)
+    ms.add_mesh(pymeshlab.Mesh(smooth_boundaries(m.vertex_matrix(), F0), F0.astype(np.int32)))
     for attempt in range(4):  # a pass can leave a sliver; a few more iterations remove it
         ms.meshing_isotropic_explicit_remeshing(
-            iterations=iterations if attempt == 0 else 3, targetlen=pymeshlab.PureValue(target), featuredeg=75,
+            iterations=3, targetlen=pymeshlab.PureValue(target), featuredeg=75,
             checksurfdist=True, maxsurfdist=pymeshlab.PureValue(0.002),
         )  # fmt: skip
         # collapse micro-triangles the remesher can leave behind (edges of a few micrometres)

@@ -91,6 +91,28 @@ class Topology:
         return replace(self, **changes)
 
 
+def boundary_loops(faces: np.ndarray) -> list[np.ndarray]:
+    """Boundary loops of a triangle mesh as ordered vertex arrays (following the faces' orientation)."""
+    f = np.asarray(faces, dtype=np.int64)
+    a, b = f.ravel(), f[:, [1, 2, 0]].ravel()
+    n = int(f.max()) + 1 if f.size else 0
+    und = np.minimum(a, b) * n + np.maximum(a, b)
+    keys, inv, counts = np.unique(und, return_inverse=True, return_counts=True)
+    on_boundary = counts[inv] == 1
+    nxt = dict(zip(a[on_boundary].tolist(), b[on_boundary].tolist()))
+    loops, seen = [], set()
+    for v0 in nxt:
+        if v0 in seen:
+            continue
+        loop, v = [], v0
+        while v not in seen and v in nxt:
+            seen.add(v)
+            loop.append(v)
+            v = nxt[v]
+        loops.append(np.array(loop, dtype=np.int64))
+    return loops
+
+
 def _dihedral(x0, x1, opp0, opp1):
     """Signed dihedral angle of hinges (numpy, for rest state); same convention as ops.dihedral_angles."""
     e = x1 - x0
@@ -170,19 +192,7 @@ def build_topology_arrays(vertices: np.ndarray, faces: np.ndarray) -> dict:
     W = W + W.T
     L = scipy.sparse.diags(np.asarray(W.sum(1)).ravel()) - W
     L = L.tocoo()
-    # boundary loops from boundary half-edges (a -> b), each vertex has one outgoing boundary edge
-    bnd = order[start[counts == 1]]
-    nxt = dict(zip(a[bnd].tolist(), b[bnd].tolist()))
-    loops, seen = [], set()
-    for v0 in nxt:
-        if v0 in seen:
-            continue
-        loop, v = [], v0
-        while v not in seen and v in nxt:
-            seen.add(v)
-            loop.append(v)
-            v = nxt[v]
-        loops.append(np.array(loop, dtype=np.int64))
+    loops = boundary_loops(f)
     return dict(
         faces=f, edges=edges, rest_edge_lengths=np.linalg.norm(x[edges[:, 1]] - x[edges[:, 0]], axis=1),
         hinge_edges=hinge_edges, hinge_faces=hinge_faces, hinge_opposite=hinge_opp, rest_dihedral=rest_dihedral,
