@@ -7,7 +7,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import h5py
-import numpy as np
 import torch
 
 from drapebench.body.model import BodyModel, BodyOutput

@@ -129,7 +129,6 @@ def loft_field(
     # above the widest slice: follow the body; below: running max downwards plus flare
     for k in range(1, len(z_levels)):
         if k > widest:
-            drop = z_levels[widest] - z_levels[k]
             base = R[k - 1] if np.isfinite(R[k - 1]).all() else R[widest]
             cur = R[k] if np.isfinite(R[k]).all() else base
             R[k] = np.maximum(base, cur) + flare * dz

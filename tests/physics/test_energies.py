@@ -4,7 +4,6 @@ import torch
 import trimesh
 
 from drapebench.geometry import get_topology
-from drapebench.geometry.ops import dihedral_angles
 from drapebench.physics import (
     Material,
     bending_energy,
