@@ -176,7 +176,9 @@ def bake(out_dir: Path = BODY_DIR, n_samples: int = N_SAMPLES, n_betas: int = N_
 
     t0 = time.time()
     phen = sample_phenotypes(n_samples, seed)
-    report: dict = {"anny_version": getattr(anny, "__version__", "0.6.2"), "n_samples": n_samples, "seed": seed}
+    from importlib.metadata import version
+
+    report: dict = {"anny_version": version("anny"), "n_samples": n_samples, "seed": seed}
     coeffs = None
     for name, topology in TOPOLOGIES.items():
         model = anny.Anny(topology=topology).to(torch.float64)
@@ -218,6 +220,11 @@ def bake(out_dir: Path = BODY_DIR, n_samples: int = N_SAMPLES, n_betas: int = N_
             anny_bone_labels=np.array(labels),
             anny_bone_to_joint=bone_to_joint,
             phenotype_ranges=np.array(json.dumps(PHENOTYPE_RANGES)),
+            anny_version=np.array(report["anny_version"]),
+            pca_std=np.array(report["pca_std"], dtype=np.float32),  # std of each PCA coefficient (metres, L2 over all V*3 coords)
+            pca_explained_variance=np.array(report["pca_explained_variance"]),
+            n_samples=np.array(n_samples),
+            seed=np.array(seed),
         )
         path = Path(out_dir) / f"{name}.npz"
         with atomic_write(path) as f:
