@@ -15,6 +15,7 @@ import torch
 from drapebench.cache import atomic_write, cache_dir, content_hash
 
 _MEMORY: dict[str, "Topology"] = {}
+_FORMAT = 2  # bump when the stored arrays change; older cache files are then rebuilt
 
 
 @dataclass(frozen=True)
@@ -24,8 +25,11 @@ class Topology:
     faces (F,3) long; edges (E,2) long with i < j; rest_edge_lengths (E,) m;
     hinge_edges (H,2) interior edges oriented as in their first face; hinge_faces (H,2);
     hinge_opposite (H,2) the vertex of each face opposite the edge; rest_dihedral (H,) signed
-    dihedral angle (rad, 0 = flat, atan2 form); hinge_rest_lengths (H,) m; face_areas (F,) m^2; rest_inv (F,2,2) inverse of
-    the flattened rest edge matrix [x1-x0, x2-x0] (StVK); vertex_areas (V,) lumped (sum of A/3);
+    dihedral angle (rad, 0 = flat, atan2 form); hinge_rest_lengths (H,) m; face_areas (F,) m^2 (3D rest
+    areas); rest_inv (F,2,2) inverse of the rest edge matrix Dm = [x1-x0, x2-x0] expressed in 2D: the
+    3D rest triangle rotated into its own plane, or the UV (sewing-pattern, metres) triangle when the
+    mesh was built with ``uv`` (then ``uv_rest`` is True and the template itself is pre-strained, as
+    GAPS/SNUG do for pants, shorts and dresses); vertex_areas (V,) lumped (sum of A/3);
     ring_ptr (V+1,), ring_idx (nnz,) 1-ring neighbours in CSR form; rest_ring_eigvals (V,3)
     ascending eigenvalues of the covariance of each vertex's 1-ring neighbours (centre excluded,
     mean-centred, divided by the count; GAPS); laplacian (V,V) sparse cotangent Laplacian
@@ -49,6 +53,7 @@ class Topology:
     laplacian: torch.Tensor
     boundary_loops: tuple
     key: str = ""
+    uv_rest: bool = False
 
     @property
     def n_vertices(self) -> int:
@@ -122,8 +127,23 @@ def _dihedral(x0, x1, opp0, opp1):
     return np.arctan2((np.cross(n0, n1) * eh).sum(-1), (n0 * n1).sum(-1))
 
 
-def build_topology_arrays(vertices: np.ndarray, faces: np.ndarray) -> dict:
-    """Compute every Topology quantity in float64 numpy (see :class:`Topology`)."""
+def _uv_corners(uv: np.ndarray, faces: np.ndarray, n_vertices: int) -> np.ndarray:
+    """UV coordinates per face corner (F, 3, 2) from per-vertex (V, 2) or per-corner (F, 3, 2) input."""
+    uv = np.asarray(uv, dtype=np.float64)
+    if uv.shape == (n_vertices, 2):
+        return uv[faces]
+    if uv.ndim == 3 and uv.shape == (faces.shape[0], 3, 2):
+        return uv
+    raise ValueError(
+        f"uv must be per vertex ({n_vertices}, 2) or per face corner ({faces.shape[0]}, 3, 2), got shape {uv.shape}"
+    )
+
+
+def build_topology_arrays(vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray | None = None) -> dict:
+    """Compute every Topology quantity in float64 numpy (see :class:`Topology`).
+
+    ``uv`` (V, 2) or (F, 3, 2), metres: optional rest shape for ``rest_inv`` (sewing-pattern coordinates).
+    """
     V = vertices.shape[0]
     x = vertices.astype(np.float64)
     f = faces.astype(np.int64)
@@ -164,6 +184,13 @@ def build_topology_arrays(vertices: np.ndarray, faces: np.ndarray) -> dict:
     Dm[:, 0, 0] = l1
     Dm[:, 0, 1] = (e2 * u).sum(1)
     Dm[:, 1, 1] = (e2 * w).sum(1)
+    if uv is not None:
+        c_uv = _uv_corners(uv, f, V)
+        Dm = np.stack([c_uv[:, 1] - c_uv[:, 0], c_uv[:, 2] - c_uv[:, 0]], axis=-1)  # columns = edges
+        det = np.abs(np.linalg.det(Dm))
+        if (det <= 1e-14).any():
+            bad = np.flatnonzero(det <= 1e-14)[:10].tolist()
+            raise ValueError(f"faces {bad} have zero area in uv; fix the uv layout or build without uv")
     rest_inv = np.linalg.inv(Dm)
     vertex_areas = np.bincount(f.reshape(-1), np.repeat(areas / 3.0, 3), minlength=V)
     # 1-ring CSR from the undirected edges
@@ -199,6 +226,7 @@ def build_topology_arrays(vertices: np.ndarray, faces: np.ndarray) -> dict:
         hinge_rest_lengths=np.linalg.norm(x[hinge_edges[:, 1]] - x[hinge_edges[:, 0]], axis=1),
         face_areas=areas, rest_inv=rest_inv, vertex_areas=vertex_areas, ring_ptr=ring_ptr, ring_idx=ring_idx,
         rest_ring_eigvals=eig, lap_row=L.row, lap_col=L.col, lap_val=L.data, boundary_loops=loops,
+        uv_rest=np.array(uv is not None),
     )  # fmt: skip
 
 
@@ -215,30 +243,42 @@ def _from_arrays(arr: dict, key: str, dtype: torch.dtype) -> Topology:
         hinge_rest_lengths=t("hinge_rest_lengths"), face_areas=t("face_areas"), rest_inv=t("rest_inv"), vertex_areas=t("vertex_areas"), ring_ptr=i("ring_ptr"),
         ring_idx=i("ring_idx"), rest_ring_eigvals=t("rest_ring_eigvals"), laplacian=lap,
         boundary_loops=tuple(torch.as_tensor(b, dtype=torch.long) for b in arr["boundary_loops"]), key=key,
+        uv_rest=bool(arr["uv_rest"]),
     )  # fmt: skip
 
 
-def get_topology(vertices, faces, dtype: torch.dtype = torch.float32, device="cpu", cache: bool = True) -> Topology:
-    """The :class:`Topology` of a mesh, cached in memory and on disk by content hash.
+def get_topology(
+    vertices, faces, dtype: torch.dtype = torch.float32, device="cpu", cache: bool = True, uv=None
+) -> Topology:
+    """The :class:`Topology` of a mesh, cached in memory and on disk (``data/cache/topology``) by content hash.
 
     Args:
         vertices: (V, 3) rest positions (m), numpy or torch.
         faces: (F, 3) triangle indices.
         dtype: float32 (default) or float64 for the float tensors.
+        device: where the tensors live.
+        cache: False builds afresh and stores nothing.
+        uv: optional (V, 2) or (F, 3, 2) sewing-pattern coordinates (m) used as the StVK rest shape.
     Raises:
-        ValueError for non-manifold edges or zero-area faces (named by index).
+        ValueError for malformed arrays, non-manifold edges or zero-area faces (named by index).
     """
+    if dtype not in (torch.float32, torch.float64):
+        raise ValueError(f"dtype must be torch.float32 or torch.float64, got {dtype}")
     x = np.asarray(vertices.detach().cpu() if isinstance(vertices, torch.Tensor) else vertices, dtype=np.float64)
     f = np.asarray(faces.detach().cpu() if isinstance(faces, torch.Tensor) else faces, dtype=np.int64)
     if x.ndim != 2 or x.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3:
         raise ValueError(f"expected vertices (V,3) and faces (F,3), got {x.shape} and {f.shape}")
     if f.size and (f.min() < 0 or f.max() >= len(x)):
         raise ValueError(f"faces index outside [0, {len(x)})")
-    key = content_hash(x, f)
+    uv_arr = None
+    if uv is not None:
+        uv_arr = np.asarray(uv.detach().cpu() if isinstance(uv, torch.Tensor) else uv, dtype=np.float64)
+        _uv_corners(uv_arr, f, len(x))  # validates the shape before anything is hashed or built
+    key = content_hash(x, f) if uv_arr is None else content_hash(x, f, uv_arr)
     mem_key = f"{key}-{dtype}-{device}"
     if cache and mem_key in _MEMORY:
         return _MEMORY[mem_key]
-    path = cache_dir("topology") / f"{key}.npz"
+    path = cache_dir("topology") / f"{key}-v{_FORMAT}.npz"
     arr = None
     if cache and path.exists():
         try:
@@ -248,7 +288,7 @@ def get_topology(vertices, faces, dtype: torch.dtype = torch.float32, device="cp
         except (OSError, ValueError, KeyError):
             arr = None  # unreadable cache entry: rebuild it
     if arr is None:
-        arr = build_topology_arrays(x, f)
+        arr = build_topology_arrays(x, f, uv_arr)
         if cache:
             loops = arr["boundary_loops"]
             flat = np.concatenate(loops) if loops else np.zeros(0, np.int64)
