@@ -2,6 +2,7 @@
 
 from drapebench.physics.energies import (
     bending_energy,
+    collision_aware_kext,
     collision_energy,
     deformation_gradient,
     gravity_energy,
@@ -24,6 +25,7 @@ __all__ = [
     "Material",
     "MeshStateReport",
     "bending_energy",
+    "collision_aware_kext",
     "collision_energy",
     "deformation_gradient",
     "energy_terms",

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import torch
 
-from drapebench.geometry.ops import dihedral_angles, edge_lengths
+from drapebench.geometry.ops import dihedral_angles, edge_lengths, face_areas
 from drapebench.geometry.topology import Topology
 from drapebench.physics.material import Material
 
@@ -65,21 +65,32 @@ def bending_energy(
     material: Material,
     rest_angle: str | torch.Tensor = "flat",
     blend: torch.Tensor | None = None,
+    scale: str = "rest",
     per_element: bool = False,
 ) -> torch.Tensor:
     """Discrete hinge bending (J): sum_e k s_e / 2 [(1 - w_e) theta_e^2 + w_e (theta_e - theta_bar_e)^2].
 
-    theta is the signed dihedral angle, s_e = l_e^2 / (4 (a0 + a1)) from the rest state (SNUG/GAPS
-    code; the GAPS paper writes l^2/(8a) with no 1/2 in front, the same number), k = Material.bending.
+    theta is the signed dihedral angle (``ops.dihedral_angles``), s_e = l_e^2 / (4 (a0 + a1)) with the
+    edge length l_e and the two face areas a0, a1 (SNUG/GAPS code; the GAPS paper's Eq. 12 writes
+    l^2/(8a) with no 1/2 in front, the same number), k = Material.bending (N m).
     ``rest_angle``: "flat" (theta_bar = 0, SNUG), "template" (theta_bar = rest dihedral), or an (H,)
-    tensor. ``blend`` (H,) or (B,H) in [0, 1] gives GAPS's per-edge mix between the flat and the
-    template angle (w = min-max normalised body distance of the edge in the rest pose); with
-    ``blend`` the template angle is theta_bar.
+    tensor (rad). ``blend`` (H,) or (B, H) in [0, 1] gives GAPS's per-edge mix between the flat and
+    the template angle (Eq. 12: w = min-max normalised body distance of the edge in the rest pose);
+    with ``blend`` theta_bar is the template angle and ``rest_angle`` is ignored.
+    ``scale``: "rest" (s_e from the rest mesh, SNUG/GAPS code) or "current" (from the deformed edge
+    length and face areas, as GenSim Eq. 4 prints ||E_ij^pred||^2).
     """
     x = _batch(x)
-    theta = dihedral_angles(x, topo.hinge_edges, topo.hinge_opposite)
-    area_sum = topo.face_areas[topo.hinge_faces].sum(-1)
-    scale = topo.hinge_rest_lengths**2 / (4.0 * area_sum)
+    theta = dihedral_angles(x, topo)
+    rest_area = topo.face_areas[topo.hinge_faces].sum(-1)
+    if scale == "rest":
+        s = topo.hinge_rest_lengths**2 / (4.0 * rest_area)
+    elif scale == "current":
+        l2 = edge_lengths(x, topo.hinge_edges) ** 2
+        area = face_areas(x, topo.faces)[..., topo.hinge_faces].sum(-1)
+        s = l2 / (4.0 * torch.maximum(area, 1e-6 * rest_area))  # floor: collapsed faces stay finite
+    else:
+        raise ValueError(f"scale must be 'rest' or 'current', not {scale!r}")
     if blend is not None:
         w = blend.to(x.dtype)
         e = (1.0 - w) * theta**2 + w * (theta - topo.rest_dihedral) ** 2
@@ -91,7 +102,7 @@ def bending_energy(
         else:
             ref = rest_angle.to(x.dtype)
         e = (theta - ref) ** 2
-    return _total(0.5 * material.bending * scale * e, per_element)
+    return _total(0.5 * material.bending * s * e, per_element)
 
 
 def gravity_energy(x: torch.Tensor, topo: Topology, material: Material, per_element: bool = False) -> torch.Tensor:
@@ -135,11 +146,13 @@ def collision_energy(
 def hinge_collision_energy(
     x: torch.Tensor, nn_point: torch.Tensor, nn_normal: torch.Tensor, eps: float = 2e-3, per_element: bool = False
 ) -> torch.Tensor:
-    """GenSim's linear hinge collision penalty (m): sum_v max(eps - d_v, 0).
+    """GenSim's linear hinge collision penalty (m): sum_v max(eps - d_v, 0), d_v = n . (x_v - p_v).
 
-    The paper prints max(-n (B - G), eps); read literally that penalises every vertex by at least
-    eps. We use the hinge on the penetration depth that its text describes (zero once the vertex is
-    eps outside the body).
+    GenSim Eq. 8 prints max(-n (B - G), eps) = max(d, eps), which read literally is minimised by
+    pulling every vertex onto the body; its text asks for a penetration penalty with a threshold
+    eps "for robustness". This is the hinge on the margin: eps > 0 keeps vertices eps outside the
+    body (as the cubic SNUG/GAPS term); a negative eps tolerates penetrations up to |eps| (the other
+    reading of the threshold). The weight is the caller's.
     """
     x = _batch(x)
     d = ((x - nn_point) * nn_normal).sum(-1)
@@ -186,6 +199,19 @@ def inextensibility_energy(
     return _total(dets.abs().sum(-1), per_element)
 
 
+def collision_aware_kext(
+    distance: torch.Tensor, epoch: int, eps: float = 2e-3, rate: float = 10.0, cap: float = 0.03, ramp_epochs: int = 100
+) -> torch.Tensor:
+    """GAPS Eq. 16 extension factor per vertex: k_ext = 1 + min(rate d_c, cap) min(epoch, ramp_epochs), d_c = max(eps - d, 0).
+
+    ``distance`` (B, V) signed normal distance to the nearest body vertex (m); returns (B, V) in
+    [1, 1 + cap ramp_epochs] (GAPS: [1, 4], reached for d <= eps - cap/rate = -1 mm after 100 epochs).
+    Not differentiated (the GAPS code treats it as a constant of the loss).
+    """
+    d_c = torch.relu(eps - distance.detach())
+    return 1.0 + torch.clamp(rate * d_c, max=cap) * min(epoch, ramp_epochs)
+
+
 def restrain_energy(
     x: torch.Tensor, topo: Topology, fabric_mean: float, fabric_std: float, per_element: bool = False
 ) -> torch.Tensor:
@@ -217,7 +243,10 @@ def laplacian(x: torch.Tensor, topo: Topology) -> torch.Tensor:
     return torch.sparse.mm(L, flat).reshape(V, B, 3).permute(1, 0, 2)
 
 
-def laplacian_smoothness(x: torch.Tensor, topo: Topology, per_element: bool = False) -> torch.Tensor:
-    """Mesh smoothness (m): sum_v |(L x)_v| with the cotangent Laplacian (GenSim Eq. 7)."""
+def laplacian_smoothness(x: torch.Tensor, topo: Topology, squared: bool = False, per_element: bool = False) -> torch.Tensor:
+    """Mesh smoothness: sum_v |(L x)_v| (m) with the cotangent Laplacian L (GenSim Eq. 7 prints only
+    "Delta(G)"; its Table 2 reports a mean magnitude), or sum_v |(L x)_v|^2 (m^2) with ``squared``.
+    L's off-diagonal weights are (cot a + cot b) / 2, not area-normalised (``Topology.laplacian``)."""
     lx = laplacian(x, topo)
-    return _total(torch.sqrt((lx * lx).sum(-1) + _tiny(lx)), per_element)
+    sq = (lx * lx).sum(-1)
+    return _total(sq if squared else torch.sqrt(sq + _tiny(lx)), per_element)

@@ -25,20 +25,24 @@ def energy_terms(
     x_prev: torch.Tensor | None = None,
     v_prev: torch.Tensor | None = None,
     rest_angle: str | torch.Tensor = "flat",
+    blend: torch.Tensor | None = None,
+    collision_eps: float | None = None,
     candidates: torch.Tensor | None = None,
 ) -> dict[str, torch.Tensor]:
     """Named (B,) energies of garment positions x (B, V, 3) in joules (collision in m^3, unweighted).
 
     Always ``stvk``, ``bending``, ``gravity``; ``inertia`` when ``x_prev`` and ``v_prev`` (B, V, 3) are
-    given; ``collision`` (cubic, Material.collision_thickness) when ``body_vertices`` and
-    ``body_normals`` (B, Vb, 3) are given (``candidates`` restricts the body vertices searched).
-    Terms whose inputs are missing are skipped, never computed on placeholders.
+    given (x_hat = x_prev + dt v_prev, Material.dt); ``collision`` (cubic SNUG/GAPS penalty against
+    the nearest body vertex, margin ``collision_eps`` or Material.collision_thickness) when
+    ``body_vertices`` and ``body_normals`` (B, Vb, 3) are given (``candidates`` restricts the body
+    vertices searched, see ``proximity.culled_body_vertices``). ``rest_angle`` and ``blend`` are passed
+    to :func:`bending_energy`. Terms whose inputs are missing are skipped, never computed on placeholders.
     """
     if x.dim() == 2:
         x = x[None]
     terms = {
         "stvk": stvk_energy(x, topology, material),
-        "bending": bending_energy(x, topology, material, rest_angle=rest_angle),
+        "bending": bending_energy(x, topology, material, rest_angle=rest_angle, blend=blend),
         "gravity": gravity_energy(x, topology, material),
     }
     if (x_prev is None) != (v_prev is None):
@@ -49,5 +53,6 @@ def energy_terms(
         raise ValueError("collision needs both body_vertices and body_normals (or neither)")
     if body_vertices is not None:
         nn = nearest_body_vertex(x, body_vertices, body_normals, candidates)
-        terms["collision"] = collision_energy(x, nn.point, nn.normal, material.collision_thickness)
+        eps = material.collision_thickness if collision_eps is None else collision_eps
+        terms["collision"] = collision_energy(x, nn.point, nn.normal, eps)
     return terms

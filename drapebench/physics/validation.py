@@ -19,6 +19,7 @@ class MeshStateReport:
     degenerate_faces: list = field(default_factory=list)
     collapsed_edges: list = field(default_factory=list)
     folded_hinges: list = field(default_factory=list)
+    flipped_faces: list = field(default_factory=list)
     overstretched_edges: list = field(default_factory=list)
 
     @property
@@ -39,9 +40,13 @@ class MeshStateReport:
 def validate_mesh_state(
     x: torch.Tensor, topo: Topology, area_ratio: float = 1e-3, length_ratio: float = 1e-3, max_stretch: float = 10.0, fold: float = 0.95 * np.pi
 ) -> MeshStateReport:
-    """Report degenerate elements of positions x (B, V, 3) or (V, 3): non-finite vertices, faces whose area
-    fell below ``area_ratio`` x rest, edges shorter than ``length_ratio`` x rest or longer than
-    ``max_stretch`` x rest, hinges folded beyond ``fold`` radians. Entries are (frame, index) pairs."""
+    """Report degenerate elements of positions x (B, V, 3) or (V, 3); nothing is modified.
+
+    Lists, as (frame, index) pairs: non-finite vertices; faces whose area fell below ``area_ratio`` x
+    rest; edges shorter than ``length_ratio`` x rest (collapsed) or longer than ``max_stretch`` x rest;
+    hinges whose dihedral angle exceeds ``fold`` rad (folded onto themselves); flipped faces, i.e.
+    faces with most of their interior edges folded (a triangle turned over inside the sheet).
+    """
     x = x[None] if x.dim() == 2 else x
     x = x.detach()
     rep = MeshStateReport()
@@ -55,5 +60,11 @@ def validate_mesh_state(
     ratio = edge_lengths(xs, topo.edges) / topo.rest_edge_lengths
     rep.collapsed_edges = pairs(ratio < length_ratio)
     rep.overstretched_edges = pairs(ratio > max_stretch)
-    rep.folded_hinges = pairs(dihedral_angles(xs, topo.hinge_edges, topo.hinge_opposite).abs() > fold)
+    folded = dihedral_angles(xs, topo).abs() > fold  # (B, H)
+    rep.folded_hinges = pairs(folded)
+    B, F = x.shape[0], topo.n_faces
+    hf = topo.hinge_faces.reshape(-1)
+    n_folded = torch.zeros(B, F, dtype=torch.long, device=x.device).index_add(1, hf, folded.long().repeat_interleave(2, dim=1))
+    n_hinges = torch.zeros(F, dtype=torch.long, device=x.device).index_add(0, hf, torch.ones_like(hf))
+    rep.flipped_faces = pairs((n_folded > 0) & (2 * n_folded > n_hinges))
     return rep
