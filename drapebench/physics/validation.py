@@ -38,14 +38,21 @@ class MeshStateReport:
 
 
 def validate_mesh_state(
-    x: torch.Tensor, topo: Topology, area_ratio: float = 1e-3, length_ratio: float = 1e-3, max_stretch: float = 10.0, fold: float = 0.95 * np.pi
+    x: torch.Tensor,
+    topo: Topology,
+    area_ratio: float = 1e-3,
+    length_ratio: float = 1e-3,
+    max_stretch: float = 10.0,
+    fold: float = 0.95 * np.pi,
+    flip: float = 0.5 * np.pi,
 ) -> MeshStateReport:
     """Report degenerate elements of positions x (B, V, 3) or (V, 3); nothing is modified.
 
     Lists, as (frame, index) pairs: non-finite vertices; faces whose area fell below ``area_ratio`` x
     rest; edges shorter than ``length_ratio`` x rest (collapsed) or longer than ``max_stretch`` x rest;
     hinges whose dihedral angle exceeds ``fold`` rad (folded onto themselves); flipped faces, i.e.
-    faces with most of their interior edges folded (a triangle turned over inside the sheet).
+    faces turned over against most of their edge neighbours (dihedral beyond ``flip`` rad on more
+    than half of their interior edges, e.g. a vertex pushed through the opposite edge).
     """
     x = x[None] if x.dim() == 2 else x
     x = x.detach()
@@ -60,11 +67,12 @@ def validate_mesh_state(
     ratio = edge_lengths(xs, topo.edges) / topo.rest_edge_lengths
     rep.collapsed_edges = pairs(ratio < length_ratio)
     rep.overstretched_edges = pairs(ratio > max_stretch)
-    folded = dihedral_angles(xs, topo).abs() > fold  # (B, H)
-    rep.folded_hinges = pairs(folded)
+    theta = dihedral_angles(xs, topo).abs()  # (B, H)
+    rep.folded_hinges = pairs(theta > fold)
     B, F = x.shape[0], topo.n_faces
     hf = topo.hinge_faces.reshape(-1)
-    n_folded = torch.zeros(B, F, dtype=torch.long, device=x.device).index_add(1, hf, folded.long().repeat_interleave(2, dim=1))
+    turned = (theta > flip).long().repeat_interleave(2, dim=1)  # per (hinge, side) -> its face
+    n_turned = torch.zeros(B, F, dtype=torch.long, device=x.device).index_add(1, hf, turned)
     n_hinges = torch.zeros(F, dtype=torch.long, device=x.device).index_add(0, hf, torch.ones_like(hf))
-    rep.flipped_faces = pairs((n_folded > 0) & (2 * n_folded > n_hinges))
+    rep.flipped_faces = pairs(2 * n_turned > n_hinges)
     return rep

@@ -7,6 +7,7 @@ from drapebench.geometry import get_topology
 from drapebench.physics import (
     Material,
     bending_energy,
+    collision_aware_kext,
     collision_energy,
     energy_terms,
     gravity_energy,
@@ -44,7 +45,10 @@ ALL = {
     "inertia": lambda x, t: inertia_energy(x, torch.full_like(x, 0.05), torch.ones_like(x) * 0.1, t, MAT),
     "inext": lambda x, t: inextensibility_energy(x * 1.05, t, 1.2),
     "restrain": lambda x, t: restrain_energy(x, t, 1e-3, 2e-3),
+    "bending_current_scale": lambda x, t: bending_energy(x, t, MAT, "template", scale="current"),
     "smooth": lambda x, t: laplacian_smoothness(x, t),
+    "smooth_squared": lambda x, t: laplacian_smoothness(x, t, squared=True),
+    "inext_per_vertex_kext": lambda x, t: inextensibility_energy(x, t, torch.linspace(1, 1.3, t.n_vertices, dtype=x.dtype)[None]),
     "pin": lambda x, t: pin_energy(x, torch.zeros(2, 3, dtype=x.dtype), torch.tensor([0, 3])),
 }
 
@@ -56,11 +60,94 @@ def test_gradcheck_float64(name, sheet):
     assert torch.autograd.gradcheck(lambda y: ALL[name](y, topo), (x,), eps=1e-7, atol=1e-5, rtol=1e-4)
 
 
-def test_collision_gradcheck():
-    x = torch.randn(1, 20, 3, dtype=torch.float64, requires_grad=True) * 0.002
-    p = torch.zeros(1, 20, 3, dtype=torch.float64)
-    n = torch.tensor([0, 0, 1.0], dtype=torch.float64).expand(1, 20, 3)
-    assert torch.autograd.gradcheck(lambda y: collision_energy(y, p, n), (x,))
+@pytest.mark.parametrize("fn", [collision_energy, hinge_collision_energy])
+def test_collision_gradcheck(fn):
+    # keep points away from the kink at d = eps, where the hinge is not differentiable
+    z = torch.linspace(-0.01, 0.01, 20, dtype=torch.float64)
+    z = z[(z - 2e-3).abs() > 5e-4]
+    x = torch.stack([torch.randn_like(z) * 0.01, torch.randn_like(z) * 0.01, z], -1)[None].requires_grad_(True)
+    p = torch.randn(1, len(z), 3, dtype=torch.float64) * 0.01 * torch.tensor([1, 1, 0.0], dtype=torch.float64)
+    n = torch.tensor([0, 0, 1.0], dtype=torch.float64).expand(1, len(z), 3)
+    assert torch.autograd.gradcheck(lambda y: fn(y, p, n, 2e-3), (x,))
+
+
+def test_per_element_values_sum_to_the_totals(sheet):
+    V, topo = sheet
+    x = V + 0.01 * torch.randn(2, *V.shape, dtype=V.dtype)
+    for name, fn in {
+        "stvk": lambda **k: stvk_energy(x, topo, MAT, **k),
+        "bending": lambda **k: bending_energy(x, topo, MAT, "template", **k),
+        "gravity": lambda **k: gravity_energy(x, topo, MAT, **k),
+        "inext": lambda **k: inextensibility_energy(x, topo, **k),
+        "restrain": lambda **k: restrain_energy(x, topo, 1e-3, 2e-3, **k),
+        "smooth": lambda **k: laplacian_smoothness(x, topo, **k),
+    }.items():
+        total, per = fn(), fn(per_element=True)
+        assert total.shape == (2,) and per.shape[0] == 2 and per.shape[1] > 1, name
+        assert torch.allclose(per.sum(-1), total), name
+        assert not torch.allclose(total[0], total[1]), name  # the batch entries are computed separately
+
+
+def test_closed_forms_of_the_simple_terms(sheet):
+    V, topo = sheet
+    x = V[None]
+    m = topo.vertex_masses(MAT)
+    h = 0.37
+    lifted = x + torch.tensor([0, 0, h], dtype=x.dtype)
+    assert np.isclose((gravity_energy(lifted, topo, MAT) - gravity_energy(x, topo, MAT)).item(), 9.81 * h * m.sum().item())
+    v = torch.randn_like(x)
+    dt = MAT.dt
+    assert inertia_energy(x + dt * v, x, v, topo, MAT).abs().item() < 1e-20  # x == x_hat
+    off = 0.01 * torch.randn_like(x)
+    expected = (m * (off[0] ** 2).sum(-1)).sum() / (2 * dt * dt)
+    assert np.isclose(inertia_energy(x + dt * v + off, x, v, topo, MAT).item(), expected.item())
+    pins = torch.tensor([0, 5, 7])
+    assert np.isclose(pin_energy(x + 0.1, x[0, pins], pins).item(), 3 * 3 * 0.01)
+    # restrain: uniform scaling by s changes every edge by (s - 1) l0
+    s = 1.02
+    phi = (s - 1) * topo.rest_edge_lengths
+    assert np.isclose(restrain_energy(x * s, topo, 1e-3, 2e-3).item(), (((phi - 1e-3) / 2e-3) ** 2).sum().item())
+    with pytest.raises(ValueError, match="fabric_std"):
+        restrain_energy(x, topo, 1e-3, 0.0)
+
+
+def test_gaps_bending_blend_interpolates_flat_and_template(sheet):
+    V, topo = sheet
+    x = (V + 0.01 * torch.randn_like(V))[None]
+    H = topo.hinge_edges.shape[0]
+    flat, tmpl = bending_energy(x, topo, MAT, "flat"), bending_energy(x, topo, MAT, "template")
+    assert torch.allclose(bending_energy(x, topo, MAT, blend=torch.zeros(H, dtype=x.dtype)), flat)
+    assert torch.allclose(bending_energy(x, topo, MAT, blend=torch.ones(H, dtype=x.dtype)), tmpl)
+    half = bending_energy(x, topo, MAT, blend=torch.full((H,), 0.5, dtype=x.dtype))
+    assert torch.allclose(half, 0.5 * (flat + tmpl))
+    custom = bending_energy(x, topo, MAT, topo.rest_dihedral)
+    assert torch.allclose(custom, tmpl)
+    with pytest.raises(ValueError, match="rest_angle"):
+        bending_energy(x, topo, MAT, "curved")
+
+
+def test_inextensibility_against_a_per_vertex_loop(sheet):
+    V, topo = sheet
+    x = V + 0.02 * torch.randn_like(V)
+    k = 1.0 + 0.1 * torch.rand(topo.n_vertices, dtype=V.dtype)
+    X, ptr, idx = x.numpy(), topo.ring_ptr.numpy(), topo.ring_idx.numpy()
+    total = 0.0
+    for v in range(topo.n_vertices):
+        P = X[idx[ptr[v] : ptr[v + 1]]]
+        C = np.cov(P.T, bias=True)  # neighbours only, mean-centred, divided by the count
+        total += sum(abs(np.linalg.det(C - k[v].item() * sig * np.eye(3))) for sig in topo.rest_ring_eigvals[v].numpy())
+    assert np.isclose(inextensibility_energy(x, topo, k[None]).item(), total, rtol=1e-10)
+    # a uniform scale s multiplies the covariance by s^2: k_ext = s^2 makes the residual vanish
+    assert inextensibility_energy(V * 1.1, topo, 1.21).item() < 1e-9 * inextensibility_energy(V * 1.1, topo).item()
+
+
+def test_collision_aware_kext_follows_gaps_eq16():
+    d = torch.tensor([[0.05, 2e-3, 1e-3, -1e-3, -0.05]])
+    assert torch.allclose(collision_aware_kext(d, epoch=0), torch.ones_like(d))
+    k = collision_aware_kext(d, epoch=250)
+    assert torch.allclose(k, torch.tensor([[1.0, 1.0, 1.0 + 0.01 * 100, 4.0, 4.0]]))
+    assert torch.allclose(collision_aware_kext(d, epoch=50)[0, -1], torch.tensor(1 + 0.03 * 50))
+
 
 
 def test_zero_strain_and_bending_at_rest(sheet):
@@ -115,14 +202,18 @@ def test_against_per_element_loops():
 
 
 def test_float32_matches_float64_on_5k_mesh():
-    m = trimesh.creation.icosphere(subdivisions=5, radius=0.3)  # 10k vertices
-    t64 = get_topology(m.vertices, m.faces, dtype=torch.float64, cache=False)
-    t32 = get_topology(m.vertices, m.faces, dtype=torch.float32, cache=False)
-    x = torch.as_tensor(m.vertices) * torch.tensor([1.05, 0.98, 1.0], dtype=torch.float64)
-    for fn in (stvk_energy, gravity_energy):
-        a, b = fn(x, t64, MAT), fn(x.float(), t32, MAT)
-        assert np.isclose(a.item(), b.item(), rtol=1e-3), fn.__name__
-    assert np.isclose(bending_energy(x, t64, MAT, "template").item(), bending_energy(x.float(), t32, MAT, "template").item(), rtol=2e-2)
+    m = trimesh.creation.icosphere(subdivisions=4, radius=0.3)
+    V, F = np.asarray(m.vertices), np.asarray(m.faces)
+    V = np.concatenate([V, V + [0.7, 0, 0]])  # two spheres: 5124 vertices
+    F = np.concatenate([F, F + len(m.vertices)])
+    t64 = get_topology(V, F, dtype=torch.float64, cache=False)
+    t32 = get_topology(V, F, dtype=torch.float32, cache=False)
+    rng = np.random.default_rng(0)
+    x = torch.as_tensor(V * [1.05, 0.98, 1.0] + 0.002 * rng.normal(size=V.shape))
+    fns = {**ALL, "bending_template": lambda x, t: bending_energy(x, t, MAT, "template")}
+    for name, fn in fns.items():
+        a, b = fn(x[None], t64), fn(x.float()[None], t32)
+        assert b.dtype == torch.float32 and np.isclose(a.item(), b.item(), rtol=2e-3), name
 
 
 def test_energy_terms_has_what_the_scene_needs(sheet):
@@ -166,13 +257,19 @@ def test_degenerate_states_stay_finite_and_are_reported(sheet):
         for dtype in (torch.float32, torch.float64):
             y = x.to(dtype)[None].clone().requires_grad_(True)
             t = topo.to(dtype=dtype)
+            p, n = torch.zeros_like(y), torch.nn.functional.normalize(torch.ones_like(y), dim=-1)
             e = (stvk_energy(y, t, MAT) + bending_energy(y, t, MAT, "template") + inextensibility_energy(y, t)
-                 + laplacian_smoothness(y, t) + restrain_energy(y, t, 0.0, 1e-3) + gravity_energy(y, t, MAT))  # fmt: skip
+                 + bending_energy(y, t, MAT, blend=torch.rand(len(t.hinge_edges), dtype=dtype), scale="current")
+                 + laplacian_smoothness(y, t) + laplacian_smoothness(y, t, squared=True)
+                 + restrain_energy(y, t, 0.0, 1e-3) + gravity_energy(y, t, MAT) + pin_energy(y, V[:2].to(dtype), torch.arange(2))
+                 + inertia_energy(y, V.to(dtype), torch.zeros_like(y), t, MAT)
+                 + collision_energy(y, p, n) + hinge_collision_energy(y, p, n))  # fmt: skip
             e.sum().backward()
             assert torch.isfinite(e).all() and torch.isfinite(y.grad).all(), (name, dtype)
     report = validate_mesh_state(cases["collapsed"], topo)
     assert not report.ok and report.collapsed_edges and report.degenerate_faces
     assert validate_mesh_state(cases["folded"], topo).folded_hinges
+    assert (0, 3) in validate_mesh_state(cases["flipped"], topo).flipped_faces
     assert validate_mesh_state(cases["stretch100"], topo).overstretched_edges
     assert validate_mesh_state(V, topo).ok
     bad = V.clone()
