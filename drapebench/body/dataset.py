@@ -1,9 +1,10 @@
 """Named datasets of body sequences with random body shapes, built once into ``data/datasets/<name>.h5``.
 
 ``python -m drapebench.body.dataset train_small`` builds one (``--force`` rebuilds, ``--list`` shows
-the names). A file whose stored spec hash matches is reused; a file that fails its checksum or
-hash check is rebuilt. Held-out motion kinds (``kick`` and ``stress`` never appear in training
-sets) give a split by motion; seeds give a split within a motion.
+the names). A complete file whose stored spec hash (spec + motion generator version) matches is
+reused; a missing, incomplete, corrupt or outdated file is rebuilt. Held-out motion kinds (``kick``
+and ``stress`` never appear in training sets) give a split by motion; disjoint per-sequence seeds
+(drawn from each spec's own ``seed``) give a split within a motion.
 """
 
 from __future__ import annotations
@@ -16,13 +17,14 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from drapebench.body.motions import MOTIONS
+from drapebench.body.motions import MOTION_VERSION, MOTIONS, split_motions
 from drapebench.body.sequence import DEFAULT_TRANSITION, BodySequence, make_sequence
 from drapebench.cache import atomic_write, content_hash, data_dir
 from drapebench.progress import progress
 
-TRAIN_MOTIONS = ("walk", "run", "jump", "arm_raise", "squat", "twist", "dance")
-HELD_OUT_MOTIONS = tuple(m for m in MOTIONS if m not in TRAIN_MOTIONS and m != "static")
+# Split by motion kind: kick and stress never appear in training sets; static (a held pose) is in neither.
+HELD_OUT_MOTIONS = ("kick", "stress")
+TRAIN_MOTIONS = split_motions(held_out=(*HELD_OUT_MOTIONS, "static"))[0]
 
 
 @dataclass(frozen=True)
@@ -50,7 +52,8 @@ class DatasetSpec:
             raise ValueError(f"unknown motion(s) {bad}; valid motions: {', '.join(MOTIONS)}")
 
     def hash(self) -> str:
-        return content_hash(asdict(self))
+        """Content hash of the spec and the motion generator version (a changed generator rebuilds datasets)."""
+        return content_hash(asdict(self), MOTION_VERSION)
 
 
 DATASETS: dict[str, DatasetSpec] = {
@@ -140,7 +143,10 @@ def main(argv=None) -> None:
             print(f"{name:14s} {len(spec.motions) * spec.per_motion:4d} sequences x {spec.n_frames} frames  {', '.join(spec.motions)}")
         return
     for name in args.names:
-        print(build_dataset(name, force=args.force))
+        _, spec = _resolve(name)
+        fresh = not args.force and _is_current(dataset_path(name), spec.hash())
+        path = build_dataset(name, force=args.force)
+        print(f"{path} ({'up to date, skipped' if fresh else 'built'})")
 
 
 if __name__ == "__main__":

@@ -1,11 +1,19 @@
 """Procedural, seeded body motions for the 22-joint skeleton.
 
 Every motion is a smooth function of time (sums of sinusoids and Gaussian bumps), so poses and the
-root translation have bounded finite-difference acceleration. Joint angles are passed through a
-smooth soft limit (identity inside the range, exponential approach within 5 % of either end) so
-they never leave :data:`drapebench.body.limits.JOINT_LIMITS`. A sequence may begin with a
-transition: a C2 envelope (quintic smoothstep) scales the whole motion from the rest pose
-(``pose = 0``, ``trans = 0``) to full amplitude, so velocity and acceleration stay continuous.
+root translation have bounded finite-difference acceleration. Motions are designed inside
+:data:`drapebench.body.limits.JOINT_LIMITS`; a smooth soft limit (identity inside the range,
+exponential approach within 5 % of either end) guarantees they never leave it. Random motions
+(``dance``, ``stress``) cap each joint axis's angular acceleration (``max_acc``, rad/s^2) by slowing
+their sinusoids. A sequence may begin with a transition: a C2 envelope (quintic smoothstep) scales
+the whole motion from the rest pose (``pose = 0``, ``trans = 0``) to full amplitude, so velocity and
+acceleration stay continuous.
+
+Ground contact: motions without a flight phase are "grounded": the root height follows the soles of
+a canonical body (the shipped ``anny_lowres`` at mean shape) through a smooth soft minimum over its
+skinned sole vertices, so the lowest sole point stays at the rest floor level.
+``run`` and ``jump`` use their designed vertical trajectories (flight); ``stress`` floats (its flailing legs
+would make the support switch too fast).
 
 The seed varies amplitude (+-15 %), cadence (+-10 %) and phase; ``amplitude``, ``cadence`` (Hz),
 ``speed`` (m/s) and motion-specific parameters override the defaults.
@@ -13,12 +21,18 @@ The seed varies amplitude (+-15 %), cadence (+-10 %) and phase; ``amplitude``, `
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
+import torch
 
 from drapebench.body.bake import JOINT_NAMES
+from drapebench.body.lbs import lbs
 from drapebench.body.limits import JOINT_LIMITS
 
 MOTIONS = ("walk", "run", "jump", "arm_raise", "squat", "twist", "kick", "dance", "static", "stress")
+MOTION_VERSION = 2  # bump when generated poses change (part of dataset content hashes)
+GROUND_SOFTNESS = 0.01  # metres; soft-min temperature of the foot-contact height
 J = {name: i for i, name in enumerate(JOINT_NAMES)}
 X, Y, Z = 0, 1, 2
 THIGH, SHIN = 0.45, 0.45  # metres; approximate leg segment lengths for pelvis-height compensation
@@ -85,7 +99,8 @@ def _walk_like(m, t, rng, a, f, speed, run: bool):
     m.set("spine1", Z, -0.06 * a * s)
     m.set("spine1", X, 0.15 if run else 0.03)
     m.velocity[:, 1] = -speed
-    m.z[:] = (0.04 if run else 0.015) * a * np.cos(2 * phi)
+    if run:  # flight: the root bounces twice per cycle (walking is grounded through the feet instead)
+        m.z[:] = 0.04 * a * np.cos(2 * phi)
 
 
 def _jump(m, t, rng, a, f, height):
@@ -97,7 +112,8 @@ def _jump(m, t, rng, a, f, height):
     m.both("knee", X, knee)
     m.both("ankle", X, -0.45 * a * crouch + 0.5 * flight)
     m.set("spine1", X, 0.3 * a * crouch)
-    m.both("shoulder", X, 0.5 * crouch - 1.3 * a * flight)
+    swing = _bump(u, 0.55, 0.16)  # arms swing up through take-off and flight, slower than the legs
+    m.both("shoulder", X, 0.5 * _bump(u, 0.3, 0.14) - 1.3 * a * swing)
     m.both("shoulder", Y, 0.3, mirror=True)
     m.both("elbow", X, -0.3)
     m.z[:] = -_leg_drop(hip, knee) + height * a * flight
@@ -121,7 +137,6 @@ def _squat(m, t, rng, a, f):
     m.both("ankle", X, -(knee - hip))
     m.set("spine1", X, 0.35 * a * r)
     m.both("shoulder", X, -1.0 * a * r)
-    m.z[:] = -_leg_drop(hip, knee)
 
 
 def _twist(m, t, rng, a, f):
@@ -148,18 +163,27 @@ def _kick(m, t, rng, a, f, side):
     m.set("spine1", X, -0.15 * a * kick)
 
 
-def _random_smooth(m, t, rng, a, freq_range, reach, joints, n_harmonics=3):
-    """Each joint axis: centre inside the limits plus a few random sinusoids; ``reach`` is the fraction of the half-range used."""
+def _random_smooth(m, t, rng, a, freq_range, reach, joints, max_acc, bias=0.5, n_harmonics=3):
+    """Each joint axis: a centre plus a few random sinusoids that stay inside the limits by design.
+
+    The centre lies ``bias`` of the way from the rest pose (0) to the middle of the range, moved by up
+    to 30 % of the half-range; the sinusoid amplitudes sum to ``reach`` (x ``a``) times the room left to
+    the nearer limit. Frequencies are lowered where the axis's peak angular acceleration would exceed
+    ``max_acc`` (rad/s^2).
+    """
     for name in joints:
         j = J[name]
         for axis in range(3):
             lo, hi = JOINT_LIMITS[j, axis]
             mid, half = (lo + hi) / 2, (hi - lo) / 2
-            centre = mid + rng.uniform(-0.3, 0.3) * half
-            amps = rng.dirichlet(np.ones(n_harmonics)) * reach * a * (half - abs(centre - mid))
-            freqs = rng.uniform(*freq_range, n_harmonics)
+            centre = np.clip(bias * mid + rng.uniform(-0.3, 0.3) * half, lo, hi)
+            amps = rng.dirichlet(np.ones(n_harmonics)) * min(reach * a, 1.0) * (half - abs(centre - mid))
+            omega = 2 * np.pi * rng.uniform(*freq_range, n_harmonics)
+            peak = (amps * omega**2).sum()
+            if peak > max_acc:
+                omega = omega * np.sqrt(max_acc / peak)
             phases = rng.uniform(0, 2 * np.pi, n_harmonics)
-            m.pose[:, j, axis] = centre + (amps * np.sin(2 * np.pi * freqs * t[:, None] + phases)).sum(-1)
+            m.pose[:, j, axis] = centre + (amps * np.sin(omega * t[:, None] + phases)).sum(-1)
 
 
 _DANCE_JOINTS = ("spine1", "spine2", "spine3", "neck", "head", "left_collar", "right_collar",
@@ -167,24 +191,23 @@ _DANCE_JOINTS = ("spine1", "spine2", "spine3", "neck", "head", "left_collar", "r
                  "right_wrist", "left_hip", "right_hip", "left_knee", "right_knee")  # fmt: skip
 
 
-def _dance(m, t, rng, a, f):
-    _random_smooth(m, t, rng, a, (0.3 * f, 1.2 * f), 0.4, _DANCE_JOINTS)
+def _dance(m, t, rng, a, f, max_acc):
+    _random_smooth(m, t, rng, a, (0.3 * f, 1.2 * f), 0.5, _DANCE_JOINTS, max_acc, bias=0.3)
     m.set("pelvis", Z, 0.5 * a * np.sin(2 * np.pi * 0.2 * f * t + rng.uniform(0, 2 * np.pi)))
     sway = rng.uniform(0, 2 * np.pi, 2)
     m.velocity[:, 0] = 0.25 * a * np.sin(2 * np.pi * 0.5 * f * t + sway[0])
     m.velocity[:, 1] = 0.25 * a * np.sin(2 * np.pi * 0.4 * f * t + sway[1])
-    knee = m.pose[:, J["left_knee"], X].clip(0)
-    m.z[:] = -_leg_drop(np.zeros_like(knee), knee) * 0.5
 
 
 def _static(m, t, rng, a):
-    held = _Motion(np.zeros(1))
-    _random_smooth(held, np.zeros(1), rng, a, (0.0, 0.0), 0.15, JOINT_NAMES[1:], n_harmonics=1)
-    m.pose[:] = held.pose[0]
+    """A relaxed stance held still: the rest pose plus small random offsets (<= 15 % of each range)."""
+    lo, hi = JOINT_LIMITS[1:, :, 0], JOINT_LIMITS[1:, :, 1]
+    span = 0.15 * a * (hi - lo) / 2
+    m.pose[:, 1:] = rng.uniform(np.maximum(lo, -span), np.minimum(hi, span))
 
 
-def _stress(m, t, rng, a, f):
-    _random_smooth(m, t, rng, a, (0.75 * f, 1.25 * f), 0.9, JOINT_NAMES[1:], n_harmonics=2)
+def _stress(m, t, rng, a, f, max_acc):
+    _random_smooth(m, t, rng, a, (0.75 * f, 1.25 * f), 0.9, JOINT_NAMES[1:], max_acc, bias=0.5, n_harmonics=2)
     m.set("pelvis", Z, 1.0 * a * np.sin(2 * np.pi * 0.5 * f * t))
     m.velocity[:, 0] = 1.0 * a * np.sin(2 * np.pi * 0.5 * f * t)
 
@@ -203,16 +226,33 @@ _SPECS = {
     "twist": (lambda m, t, r, p: _twist(m, t, r, p["amplitude"], p["cadence"]), dict(amplitude=1.0, cadence=0.5)),
     "kick": (lambda m, t, r, p: _kick(m, t, r, p["amplitude"], p["cadence"], p["side"]),
              dict(amplitude=1.0, cadence=0.6, side="right")),
-    "dance": (lambda m, t, r, p: _dance(m, t, r, p["amplitude"], p["cadence"]), dict(amplitude=1.0, cadence=1.0)),
+    "dance": (lambda m, t, r, p: _dance(m, t, r, p["amplitude"], p["cadence"], p["max_acc"]),
+              dict(amplitude=1.0, cadence=1.0, max_acc=30.0)),
     "static": (lambda m, t, r, p: _static(m, t, r, p["amplitude"]), dict(amplitude=1.0)),
-    "stress": (lambda m, t, r, p: _stress(m, t, r, p["amplitude"], p["cadence"]), dict(amplitude=1.0, cadence=2.0)),
+    "stress": (lambda m, t, r, p: _stress(m, t, r, p["amplitude"], p["cadence"], p["max_acc"]),
+               dict(amplitude=1.0, cadence=2.0, max_acc=80.0)),
 }  # fmt: skip
+# Motions with a designed vertical root motion (flight; stress flails its legs and floats); the others are grounded.
+UNGROUNDED_MOTIONS = ("run", "jump", "stress")
 
 
 def motion_defaults(motion: str) -> dict:
     """Default parameters of a motion (a copy)."""
     _check_motion(motion)
     return dict(_SPECS[motion][1])
+
+
+def split_motions(held_out=("kick", "stress"), motions=MOTIONS) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """Split motion kinds into (train, test): ``held_out`` kinds only ever appear in test sets.
+
+    Raises ValueError on an unknown name or when nothing is left for training.
+    """
+    for m in (*held_out, *motions):
+        _check_motion(m)
+    train = tuple(m for m in motions if m not in held_out)
+    if not train:
+        raise ValueError(f"holding out {list(held_out)} leaves no motion for training out of {list(motions)}")
+    return train, tuple(m for m in motions if m in held_out)
 
 
 def _check_motion(motion: str) -> None:
@@ -250,5 +290,35 @@ def generate(motion: str, n_frames: int, fps: float, seed: int, transition: int 
     pose = pose * envelope[:, None, None]
     velocity = m.velocity * envelope[:, None]
     trans = np.concatenate([np.zeros((1, 3)), np.cumsum(0.5 * (velocity[1:] + velocity[:-1]), 0) / fps])
-    trans[:, 2] += envelope * m.z
+    trans[:, 2] += envelope * m.z if motion in UNGROUNDED_MOTIONS else ground_offset(pose)
     return pose.astype(np.float32), trans.astype(np.float32)
+
+
+@lru_cache(maxsize=1)
+def _canonical_feet():
+    """The shipped ``anny_lowres`` body (float64) and its sole vertices (rest height < floor + 1 cm) with their weights."""
+    from drapebench.body.model import load_body  # noqa: PLC0415 (lazy: only grounded motions need the body)
+
+    body = load_body("anny_lowres", dtype=torch.float64)
+    z = body.v_template[:, 2]
+    sole = z < z.min() + 0.01
+    return body, body.v_template[sole], body.weights[sole]
+
+
+def _soft_floor(z: torch.Tensor) -> torch.Tensor:
+    """Softmax-weighted mean of heights (T, N) -> (T,), weights exp(-z / :data:`GROUND_SOFTNESS`): a smooth lowest height."""
+    return (torch.softmax(-z / GROUND_SOFTNESS, dim=-1) * z).sum(-1)
+
+
+def ground_offset(pose: np.ndarray) -> np.ndarray:
+    """Root height offset (T,) metres that keeps the lowest sole point of the canonical body at the rest floor level.
+
+    ``pose`` (T, 22, 3) axis-angle. The soft minimum over the skinned sole vertices is smooth, so the
+    offset has bounded acceleration where the support moves between heel, toes and feet; it is
+    0 (to rounding) for the rest pose.
+    """
+    body, sole, weights = _canonical_feet()
+    with torch.no_grad():
+        transforms = body.forward(None, torch.as_tensor(pose, dtype=torch.float64), skin=False).transforms
+        z = lbs(sole, weights, transforms)[..., 2]
+    return (_soft_floor(sole[None, :, 2]) - _soft_floor(z)).numpy()
