@@ -65,23 +65,28 @@ DATASETS: dict[str, DatasetSpec] = {
 }
 
 
-def spec_sequences(spec: DatasetSpec) -> list[BodySequence]:
-    """Generate the sequences a spec describes (deterministic in ``spec.seed``)."""
+def sequence_plan(spec: DatasetSpec) -> list[tuple[str, int, int, np.ndarray]]:
+    """(motion, index, seed, betas (n_betas,) float32) per sequence, deterministic in ``spec.seed``."""
     rng = np.random.default_rng(spec.seed)
-    out = []
+    plan = []
     for motion in spec.motions:
         for k in range(spec.per_motion):
             seed = int(rng.integers(2**31))
             betas = np.zeros(spec.n_betas, dtype=np.float32)
             betas[: spec.n_shape_betas] = np.clip(rng.normal(0, spec.beta_sigma, spec.n_shape_betas), -spec.beta_clip, spec.beta_clip)
-            out.append((motion, k, seed, betas))
-    seqs = []
-    for motion, k, seed, betas in progress(out, desc=f"sequences ({spec.split})", unit="seq"):
-        seqs.append(make_sequence(
+            plan.append((motion, k, seed, betas))
+    return plan
+
+
+def spec_sequences(spec: DatasetSpec) -> list[BodySequence]:
+    """Generate the sequences a spec describes (deterministic in ``spec.seed``), with a progress bar."""
+    return [
+        make_sequence(
             motion, spec.n_frames, spec.fps, seed, betas=betas, transition=spec.transition,
             split=spec.split, name=f"{spec.split}_{motion}_{k:03d}", **spec.params.get(motion, {}),
-        ))  # fmt: skip
-    return seqs
+        )
+        for motion, k, seed, betas in progress(sequence_plan(spec), desc=f"sequences ({spec.split})", unit="seq")
+    ]  # fmt: skip
 
 
 def dataset_path(name: str) -> Path:

@@ -17,6 +17,11 @@ from drapebench.geometry.ops import vertex_normals
 DEFAULT_TRANSITION = 15  # frames (0.5 s at 30 fps) from the rest pose into the motion
 
 
+def _key(kind: str, body: BodyModel) -> tuple:
+    """Cache key of posed geometry: the body object (id, name, size) and its dtype/device."""
+    return (kind, id(body), body.name, body.n_vertices, body.dtype, str(body.device))
+
+
 @dataclass
 class BodySequence:
     """One body motion.
@@ -40,7 +45,12 @@ class BodySequence:
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        self.betas = torch.as_tensor(self.betas, dtype=torch.float32).reshape(-1)
+        betas = torch.as_tensor(self.betas, dtype=torch.float32)
+        if betas.dim() == 2 and betas.shape[0] == 1:
+            betas = betas[0]
+        if betas.dim() != 1:
+            raise ValueError(f"{self.name}: betas must be (S,) shape coefficients, got {tuple(betas.shape)}")
+        self.betas = betas
         self.poses = torch.as_tensor(self.poses, dtype=torch.float32)
         self.trans = torch.as_tensor(self.trans, dtype=torch.float32)
         if self.poses.dim() != 3 or self.poses.shape[-1] != 3:
@@ -63,12 +73,9 @@ class BodySequence:
 
     def body_output(self, body: BodyModel) -> BodyOutput:
         """Posed body for every frame (cached per body and dtype): vertices (T,V,3), joints, transforms."""
-        key = ("out", id(body), body.name, body.dtype, str(body.device))
+        key = _key("out", body)
         if key not in self._cache:
-            if self.poses.shape[1] != body.n_joints:
-                raise ValueError(
-                    f"{self.name}: poses have {self.poses.shape[1]} joints, body {body.name} has {body.n_joints}"
-                )
+            self._check_joints(body)
             with torch.no_grad():
                 self._cache[key] = body.forward(
                     self.betas[None, : body.n_betas].to(body.device, body.dtype),
@@ -77,13 +84,20 @@ class BodySequence:
                 )
         return self._cache[key]
 
+    def _check_joints(self, body: BodyModel) -> None:
+        if self.poses.shape[1] != body.n_joints:
+            raise ValueError(
+                f"{self.name}: poses have {self.poses.shape[1]} joints, body {body.name} has {body.n_joints}; "
+                "use a body with the 22-joint skeleton of drapebench.body.bake.JOINT_NAMES"
+            )
+
     def vertices(self, body: BodyModel) -> torch.Tensor:
         """Posed body vertices (T, V, 3)."""
         return self.body_output(body).vertices
 
     def vertex_normals(self, body: BodyModel) -> torch.Tensor:
         """Area-weighted unit normals of the posed body (T, V, 3), cached."""
-        key = ("normals", id(body), body.name, body.dtype, str(body.device))
+        key = _key("normals", body)
         if key not in self._cache:
             self._cache[key] = vertex_normals(self.vertices(body), body.faces)
         return self._cache[key]
@@ -94,11 +108,12 @@ class BodySequence:
 
     def transforms(self, body: BodyModel) -> torch.Tensor:
         """Skinning transforms (T, J, 4, 4), translation included (without posing the vertices unless already done)."""
-        full = ("out", id(body), body.name, body.dtype, str(body.device))
+        full = _key("out", body)
         if full in self._cache:
             return self._cache[full].transforms
-        key = ("transforms", id(body), body.name, body.dtype, str(body.device))
+        key = _key("transforms", body)
         if key not in self._cache:
+            self._check_joints(body)
             with torch.no_grad():
                 self._cache[key] = body.forward(
                     self.betas[None, : body.n_betas].to(body.device, body.dtype), self.poses.to(body.device, body.dtype),

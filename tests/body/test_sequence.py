@@ -1,58 +1,73 @@
 import h5py
+import numpy as np
+import pytest
 import torch
 
-from drapebench.body import BodySequence, make_sequence
-from drapebench.body.dataset import DATASETS, DatasetSpec, build_dataset, load_dataset
+from drapebench.body import BodySequence, load_body, make_sequence
 
 
 def test_h5_round_trip_is_exact(tmp_path):
-    seq = make_sequence("dance", 40, seed=7, betas=torch.randn(10), amplitude=0.8)
+    seq = make_sequence("dance", 40, seed=7, betas=torch.randn(10), amplitude=0.8, split="test")
     seq.save(tmp_path / "s.h5")
     back = BodySequence.load(tmp_path / "s.h5")
     for key in ("betas", "poses", "trans"):
+        assert getattr(back, key).dtype == torch.float32
         assert torch.equal(getattr(seq, key), getattr(back, key))
-    assert (back.name, back.motion, back.fps, back.seed, back.n_transition, back.params) == (
-        seq.name, seq.motion, seq.fps, seq.seed, seq.n_transition, seq.params)  # fmt: skip
+    assert (back.name, back.motion, back.fps, back.seed, back.split, back.n_transition, back.params) == (
+        seq.name, seq.motion, seq.fps, seq.seed, seq.split, seq.n_transition, seq.params)  # fmt: skip
+    with h5py.File(tmp_path / "s.h5") as f:
+        assert f["poses"].dtype == np.float32 and f.attrs["params"] == '{"amplitude": 0.8}'
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.h5"]  # atomic write leaves no temp file
+
+
+def test_load_rejects_a_file_that_is_not_a_sequence(tmp_path):
+    with h5py.File(tmp_path / "x.h5", "w") as f:
+        f.create_dataset("poses", data=np.zeros((2, 22, 3), np.float32))
+    with pytest.raises(ValueError, match=r"missing \['betas', 'trans'\]"):
+        BodySequence.load(tmp_path / "x.h5")
 
 
 def test_posed_geometry_is_cached_and_consistent(body_lowres):
-    seq = make_sequence("walk", 20, seed=0)
+    seq = make_sequence("walk", 20, seed=0, betas=torch.linspace(-1, 1, 10))
     v = seq.vertices(body_lowres)
-    assert v.shape == (seq.n_frames, body_lowres.n_vertices, 3)
+    assert v.shape == (seq.n_frames, body_lowres.n_vertices, 3) and v.dtype == torch.float32
     assert seq.vertices(body_lowres) is v
+    direct = body_lowres.forward(seq.betas[None], seq.poses, seq.trans)
+    assert torch.allclose(v, direct.vertices) and torch.allclose(seq.joints(body_lowres), direct.joints)
+    assert torch.allclose(seq.transforms(body_lowres), direct.transforms)
     n = seq.vertex_normals(body_lowres)
-    assert torch.allclose(n.norm(dim=-1), torch.ones(()), atol=1e-4)
-    assert seq.transforms(body_lowres).shape == (seq.n_frames, 22, 4, 4)
+    assert n.shape == v.shape and torch.allclose(n.norm(dim=-1), torch.ones(()), atol=1e-4)
+    # normals point outwards: away from the bone of each vertex's main joint (joint -> child segment)
+    b = body_lowres
+    j = seq.joints(b)[0]
+    child = {p: c for c, p in reversed(list(enumerate(b.parents))) if p >= 0}
+    main = b.weights.argmax(1)
+    a, e = j[main], j[torch.tensor([child.get(int(m), int(m)) for m in main])]
+    seg = e - a
+    u = ((v[0] - a) * seg).sum(-1, keepdim=True) / (seg * seg).sum(-1, keepdim=True).clamp_min(1e-12)
+    axis_point = a + u.clamp(0, 1) * seg
+    assert (((v[0] - axis_point) * n[0]).sum(-1) > 0).float().mean() > 0.9
     part = seq.slice(5, 15)
+    assert part.n_frames == 10 and part.n_transition == 10  # all 10 frames lie in the 15-frame transition
     assert torch.allclose(part.vertices(body_lowres), v[5:15], atol=1e-6)
 
 
-def test_dataset_build_is_skipped_when_identical(tmp_path):
-    spec = DatasetSpec(("walk", "kick"), per_motion=2, n_frames=10, split="test", seed=4)
-    path = build_dataset(spec, path=tmp_path / "d.h5")
-    mtime = path.stat().st_mtime_ns
-    assert build_dataset(spec, path=tmp_path / "d.h5").stat().st_mtime_ns == mtime
-    assert build_dataset(spec, force=True, path=tmp_path / "d.h5").stat().st_mtime_ns != mtime
-    seqs = load_dataset(path)
-    assert [s.motion for s in seqs].count("kick") == 2
-    assert len({tuple(s.betas.tolist()) for s in seqs}) == 4  # random body shapes
-    assert all(s.betas[4:].abs().max() == 0 and s.betas.abs().max() <= spec.beta_clip for s in seqs)
+def test_cache_is_per_body_and_dtype(body_lowres):
+    seq = make_sequence("squat", 10, seed=0, transition=0)
+    v32 = seq.vertices(body_lowres)
+    body64 = load_body("anny_lowres", dtype=torch.float64)
+    v64 = seq.vertices(body64)
+    assert v64.dtype == torch.float64 and torch.allclose(v64.float(), v32, atol=1e-5)
+    assert seq.vertices(body_lowres) is v32 and seq.vertices(body64) is v64
 
 
-def test_corrupt_or_incomplete_dataset_is_rebuilt(tmp_path):
-    spec = DatasetSpec(("walk",), per_motion=1, n_frames=5, split="train")
-    path = tmp_path / "d.h5"
-    path.write_bytes(b"not an h5 file")
-    build_dataset(spec, path=path)
-    assert len(load_dataset(path)) == 1
-    with h5py.File(path, "a") as f:
-        f.attrs["complete"] = False
-    mtime = path.stat().st_mtime_ns
-    assert build_dataset(spec, path=path).stat().st_mtime_ns != mtime
-
-
-def test_training_sets_hold_out_motion_kinds():
-    held_out = {"kick", "stress"}
-    for name, spec in DATASETS.items():
-        if spec.split == "train":
-            assert not held_out & set(spec.motions), name
+def test_sequence_input_errors(body_lowres):
+    with pytest.raises(ValueError, match=r"betas must be \(S,\)"):
+        make_sequence("walk", 5, betas=torch.zeros(2, 10))
+    with pytest.raises(ValueError, match="NaN"):
+        make_sequence("walk", 5, betas=torch.full((10,), float("nan")))
+    seq = BodySequence("x", "walk", torch.zeros(10), torch.zeros(3, 24, 3), torch.zeros(3, 3))
+    with pytest.raises(ValueError, match="poses have 24 joints, body anny_lowres has 22"):
+        seq.vertices(body_lowres)
+    with pytest.raises(ValueError, match="n_transition"):
+        BodySequence("x", "walk", torch.zeros(10), torch.zeros(3, 22, 3), torch.zeros(3, 3), n_transition=4)
