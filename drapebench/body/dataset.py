@@ -129,7 +129,7 @@ def build_dataset(name_or_spec, force: bool = False, path: Path | None = None) -
 def load_dataset(name_or_path) -> list[BodySequence]:
     """Sequences of a dataset, by name (built if needed) or by file path."""
     path = Path(name_or_path)
-    if not path.suffix == ".h5":
+    if path.suffix != ".h5":
         path = build_dataset(str(name_or_path))
     with h5py.File(path, "r") as f:
         if not f.attrs.get("complete", False):

@@ -297,7 +297,7 @@ def generate(motion: str, n_frames: int, fps: float, seed: int, transition: int 
 @lru_cache(maxsize=1)
 def _canonical_feet():
     """The shipped ``anny_lowres`` body (float64) and its sole vertices (rest height < floor + 1 cm) with their weights."""
-    from drapebench.body.model import load_body  # noqa: PLC0415 (lazy: only grounded motions need the body)
+    from drapebench.body.model import load_body  # lazy: only grounded motions need the body
 
     body = load_body("anny_lowres", dtype=torch.float64)
     z = body.v_template[:, 2]

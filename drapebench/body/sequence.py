@@ -121,7 +121,7 @@ class BodySequence:
                 ).transforms  # fmt: skip
         return self._cache[key]
 
-    def slice(self, start: int, stop: int | None = None) -> "BodySequence":
+    def slice(self, start: int, stop: int | None = None) -> BodySequence:
         """Frames [start, stop) as a new sequence (the transition count is clipped to what remains)."""
         stop = self.n_frames if stop is None else stop
         return BodySequence(
@@ -143,7 +143,7 @@ class BodySequence:
         group.attrs["params"] = json.dumps(self.params, sort_keys=True)
 
     @classmethod
-    def read_h5(cls, group: h5py.Group) -> "BodySequence":
+    def read_h5(cls, group: h5py.Group) -> BodySequence:
         """Read what :meth:`write_h5` wrote."""
         missing = [k for k in ("betas", "poses", "trans") if k not in group]
         if missing:
@@ -161,7 +161,7 @@ class BodySequence:
             self.write_h5(f)
 
     @classmethod
-    def load(cls, path: str | Path) -> "BodySequence":
+    def load(cls, path: str | Path) -> BodySequence:
         """Read a file written by :meth:`save`."""
         with h5py.File(path, "r") as f:
             return cls.read_h5(f)

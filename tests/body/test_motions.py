@@ -156,3 +156,16 @@ def test_bad_motion_input():
         BodySequence("x", "walk", torch.zeros(10), torch.zeros(3, 22), torch.zeros(3, 3))
     with pytest.raises(ValueError, match=r"trans must be \(3, 3\)"):
         BodySequence("x", "walk", torch.zeros(10), torch.zeros(3, 22, 3), torch.zeros(4, 3))
+
+
+def test_hydra_motion_configs_match_the_generators():
+    from pathlib import Path
+
+    from omegaconf import OmegaConf
+
+    conf = Path(__file__).resolve().parents[2] / "conf" / "motion"
+    assert {p.stem for p in conf.glob("*.yaml")} == set(MOTIONS)
+    for p in conf.glob("*.yaml"):
+        cfg = OmegaConf.load(p)
+        assert cfg.name == p.stem and cfg.n_frames > 0 and cfg.fps > 0 and cfg.transition >= 0
+        assert set(cfg.params) <= set(motion_defaults(cfg.name)), p.name
