@@ -15,6 +15,7 @@ _REGISTRY: dict[str, str] = {
     # name -> "module:Class"; imported lazily so one method's heavy deps never load for another.
     "lbs": "methods.lbs:LBSMethod",
     "gaps": "methods.gaps:GAPS",
+    "pbs": "methods.pbs:PBSMethod",
 }
 
 

@@ -1,0 +1,72 @@
+"""Solver settings of the reference simulator; defaults live in ``conf/reference/<solver>.yaml``."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields, replace
+from pathlib import Path
+
+import yaml
+
+CONF_DIR = Path(__file__).resolve().parents[2] / "conf" / "reference"
+SOLVERS = ("vbd", "style3d")
+
+
+@dataclass(frozen=True)
+class SimSettings:
+    """How the reference is simulated (see ``conf/reference/vbd.yaml`` for each field's meaning and unit).
+
+    solver "vbd" | "style3d"; substeps per frame; iterations per substep; settle_frames before the
+    sequence; pins (bool); self_contact (bool); contact_ke N/m; contact_kd N s/m; contact_gap m;
+    damping s (Rayleigh beta); max_speed m/s (blow-up threshold); device None | "cpu" | "cuda[:i]".
+    """
+
+    solver: str = "vbd"
+    substeps: int = 10
+    iterations: int = 10
+    settle_frames: int = 30
+    pins: bool = True
+    self_contact: bool = False
+    contact_ke: float = 1000.0
+    contact_kd: float = 0.01
+    contact_gap: float = 0.01
+    damping: float = 0.001
+    max_speed: float = 50.0
+    device: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.solver not in SOLVERS:
+            raise ValueError(
+                f"unknown reference solver {self.solver!r}; available: {', '.join(SOLVERS)} "
+                "(XPBD and semi-implicit are not offered: they explode at realistic cloth mass)"
+            )
+        for key in ("substeps", "iterations"):
+            if int(getattr(self, key)) < 1:
+                raise ValueError(f"reference {key} must be >= 1, got {getattr(self, key)}")
+        if int(self.settle_frames) < 0:
+            raise ValueError(f"reference settle_frames must be >= 0, got {self.settle_frames}")
+        for key in ("contact_ke", "max_speed"):
+            if not float(getattr(self, key)) > 0:
+                raise ValueError(f"reference {key} must be positive, got {getattr(self, key)}")
+        for key in ("contact_kd", "contact_gap", "damping"):
+            if float(getattr(self, key)) < 0:
+                raise ValueError(f"reference {key} must be >= 0, got {getattr(self, key)}")
+
+    @classmethod
+    def for_solver(cls, solver: str = "vbd", **overrides) -> "SimSettings":
+        """Defaults of ``conf/reference/<solver>.yaml`` with ``overrides`` (None values are ignored)."""
+        if solver not in SOLVERS:
+            cls(solver=solver)  # raises the ValueError naming the choices
+        base = yaml.safe_load((CONF_DIR / f"{solver}.yaml").read_text())
+        valid = {f.name for f in fields(cls)}
+        given = {k: v for k, v in overrides.items() if v is not None}
+        unknown = set(given) - valid
+        if unknown:
+            raise ValueError(f"unknown reference setting(s) {sorted(unknown)}; valid: {sorted(valid)}")
+        return cls(**{**base, **given, "solver": solver})
+
+    def with_(self, **changes) -> "SimSettings":
+        """A copy with some fields changed."""
+        return replace(self, **changes)
+
+    def to_dict(self) -> dict:
+        return asdict(self)

@@ -1,0 +1,317 @@
+"""Physics-based reference drapes on Newton (VBD or Style3D), cached by content hash.
+
+Schedule (one "timeline" of body poses at the sequence's fps):
+1. The garment starts as its template on the rest body (pose 0, translation 0) of shape
+   ``seq.betas``; if that differs from ``garment.betas`` each vertex first moves by the shape
+   blend-shape offset of its nearest body vertex (what the LBS baseline does).
+2. ``settle_frames`` frames (not output): the body moves from the rest pose to the sequence's first
+   frame over the first half (a C2 smoothstep; no motion at all when frame 0 is the rest pose, as
+   for sequences with a transition prefix) and holds it for the rest, so the cloth comes to rest.
+3. The sequence's T frames play at ``seq.fps`` (its transition prefix included); the garment after
+   each frame is the output.
+
+The body is an animated triangle-mesh collider: every substep its points are linearly interpolated
+between frames, its per-vertex velocities set to the frame difference x fps (Newton's friction
+needs them), its BVH refitted and its bounding box updated (Newton culls contacts with the box it
+had at model finalisation otherwise). ``garment.pins`` (waistband / neck band) are kinematic: they
+follow linear blend skinning of their start positions with their nearest rest-body vertex's
+weights; ``pins=False`` leaves them free.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import time
+from dataclasses import dataclass, field
+from importlib import metadata
+
+import numpy as np
+import torch
+from scipy.spatial import cKDTree
+
+from drapebench.cache import atomic_write, cache_dir, content_hash
+from drapebench.physics.material import Material
+from drapebench.progress import progress as progress_bar
+from drapebench.reference.settings import SimSettings
+
+CACHE_VERSION = 1
+MAX_START_INSIDE = 0.01  # a garment with more of its vertices inside the rest body is rejected
+MAX_STRETCH = 4.0  # an edge longer than this x its rest length counts as a blow-up
+
+
+class SimulationDiverged(RuntimeError):
+    """The reference simulation blew up (NaN, runaway speed or torn elements); nothing was cached.
+
+    Attributes: garment, sequence (names), frame (sequence frame, negative while settling), reason.
+    """
+
+    def __init__(self, garment: str, sequence: str, frame: int, n_frames: int, reason: str, settings: SimSettings):
+        self.garment, self.sequence, self.frame, self.reason = garment, sequence, frame, reason
+        where = f"settling frame {frame + settings.settle_frames} of {settings.settle_frames}" if frame < 0 else \
+            f"frame {frame} of {n_frames}"  # fmt: skip
+        super().__init__(
+            f"reference simulation ({settings.solver}) of garment {garment!r} on sequence {sequence!r} diverged at "
+            f"{where}: {reason}. Try more substeps (substeps={2 * settings.substeps}, i.e. a smaller dt), more "
+            f"iterations (iterations={2 * settings.iterations}), a higher sequence fps, or a slower motion; "
+            f"the other solver (solver={'style3d' if settings.solver == 'vbd' else 'vbd'}) may also cope."
+        )
+
+
+@dataclass
+class SimulationRecord:
+    """A reference drape: vertices (T, V, 3); timings_s of the simulation that produced it (setup,
+    settle, sequence; stored with the cache entry, so they are the original cost even when loaded);
+    load_s the wall time of this call; from_cache; path of the cache file (None when not cached);
+    stats (max speed, contact count, ...)."""
+
+    vertices: torch.Tensor
+    timings_s: dict
+    settings: SimSettings
+    from_cache: bool = False
+    load_s: float = 0.0
+    path: str | None = None
+    stats: dict = field(default_factory=dict)
+
+    @property
+    def sim_s(self) -> float:
+        """Total original simulation wall time (s)."""
+        return float(sum(self.timings_s.values()))
+
+
+_BODY_KEYS: dict[int, tuple] = {}
+
+
+def _body_key(body) -> str:
+    """Content hash of everything of the body model that shapes the collider and the pins (memoised per object)."""
+    hit = _BODY_KEYS.get(id(body))
+    if hit is None or hit[0] is not body:
+        parts = [body.v_template, body.shapedirs, body.J_regressor, body.weights, body.faces, list(body.parents)]
+        if getattr(body, "posedirs", None) is not None:
+            parts.append(body.posedirs)
+        hit = (body, content_hash(*parts))
+        _BODY_KEYS[id(body)] = hit
+    return hit[1]
+
+
+def _versions() -> dict:
+    out = {}
+    for pkg in ("newton", "warp-lang"):
+        try:
+            out[pkg] = metadata.version(pkg)
+        except metadata.PackageNotFoundError:
+            out[pkg] = None
+    return out
+
+
+def _cache_path(garment, seq, settings: SimSettings, key: str):
+    name = re.sub(r"[^A-Za-z0-9_.-]+", "-", f"{garment.name}_{seq.name}_{settings.solver}")
+    return cache_dir("reference") / f"{name}_{key}.npz"
+
+
+def _smoothstep(u: np.ndarray) -> np.ndarray:
+    u = np.clip(u, 0.0, 1.0)
+    return u * u * u * (u * (6.0 * u - 15.0) + 10.0)
+
+
+def _timeline(seq, body, settle_frames: int):
+    """Body vertices (1 + S + T, Vb, 3) and transforms (1 + S + T, J, 4, 4): rest pose, settling, sequence."""
+    betas = seq.betas[None, : body.n_betas].to(body.dtype)
+    s = torch.as_tensor(_smoothstep(2.0 * np.arange(settle_frames + 1) / max(settle_frames, 1)), dtype=body.dtype)
+    s[0] = 0.0
+    pose0, trans0 = seq.poses[:1].to(body.dtype), seq.trans[:1].to(body.dtype)
+    with torch.no_grad():
+        pre = body.forward(betas.expand(len(s), -1), s[:, None, None] * pose0, s[:, None] * trans0)
+    verts = torch.cat([pre.vertices, seq.vertices(body).to(body.dtype)]).double().numpy()
+    transforms = torch.cat([pre.transforms, seq.transforms(body).to(body.dtype)])
+    return verts, transforms
+
+
+def _start_state(garment, seq, body):
+    """Start positions (V, 3) on the rest body of shape seq.betas, and each vertex's nearest body vertex."""
+    nb = body.n_betas
+    with torch.no_grad():
+        g_rest = body.shaped(garment.betas[None, :nb].to(body.dtype))[0][0]
+        _, idx = cKDTree(g_rest.double().numpy()).query(garment.vertices.double().numpy())
+        idx = torch.as_tensor(idx, dtype=torch.long)
+        dbeta = (seq.betas[:nb] - garment.betas[:nb]).to(body.dtype)
+        start = garment.vertices.to(body.dtype) + torch.einsum("vcs,s->vc", body.shapedirs[idx][..., : dbeta.shape[0]], dbeta)
+    return start, idx
+
+
+def _check_start(garment, start: torch.Tensor, rest_body: torch.Tensor, body) -> None:
+    from drapebench.geometry.proximity import signed_distance
+
+    sd = signed_distance(start[None].float(), rest_body[None].float(), body.faces)[0]
+    inside = sd < 0
+    if inside.float().mean() > MAX_START_INSIDE:
+        raise ValueError(
+            f"garment {garment.name!r} starts inside the body: {int(inside.sum())} of {garment.n_vertices} vertices "
+            f"({100 * inside.float().mean():.1f}%, deepest {-1e3 * float(sd.min()):.1f} mm) are inside the rest body "
+            f"({body.name}, the sequence's betas). The reference simulator accepts at most "
+            f"{100 * MAX_START_INSIDE:.0f}%: rebuild the garment with more ease, for the sequence's body shape "
+            f"(make_garment(..., betas=seq.betas)), or move it outward."
+        )
+
+
+def _pin_targets(start: torch.Tensor, pins: torch.Tensor, idx: torch.Tensor, body, transforms: torch.Tensor) -> np.ndarray:
+    """(1 + S + T, P, 3) positions of the pinned vertices: LBS of their start positions with nearest-vertex weights."""
+    from drapebench.body.lbs import lbs
+
+    if len(pins) == 0:
+        return np.zeros((transforms.shape[0], 0, 3))
+    with torch.no_grad():
+        return lbs(start[pins], body.weights[idx[pins]].to(start.dtype), transforms.to(start.dtype)).double().numpy()
+
+
+def _run(garment, seq, body, material: Material, settings: SimSettings, show_progress: bool):
+    from drapebench.reference.scene import ClothScene, resolve_device
+
+    t_setup = time.perf_counter()
+    device = resolve_device(settings.device)
+    S, T = int(settings.settle_frames), seq.n_frames
+    start, idx = _start_state(garment, seq, body)
+    verts, transforms = _timeline(seq, body, S)
+    _check_start(garment, start, torch.as_tensor(verts[0]), body)
+    pins = garment.pins.long() if settings.pins else torch.zeros(0, dtype=torch.long)
+    pin_q = _pin_targets(start, pins, idx, body, transforms)
+    rest = garment.vertices.double().numpy()
+    faces = garment.faces.numpy()
+    edges = garment.topology.edges.numpy()
+    rest_len = garment.topology.rest_edge_lengths.double().numpy()
+    scene = ClothScene(rest, faces, start.double().numpy(), verts[0], body.faces.numpy(), pins.numpy(), material,
+                       settings, device)  # fmt: skip
+    timings = {"setup": time.perf_counter() - t_setup, "settle": 0.0, "sequence": 0.0}
+
+    n_sub, fps = int(settings.substeps), float(seq.fps)
+    dt = 1.0 / (fps * n_sub)
+    out = np.empty((T, garment.n_vertices, 3), dtype=np.float32)
+    x_prev = scene.positions().astype(np.float64)
+    max_speed = 0.0
+    bar = progress_bar(total=S + T, desc=f"pbs {settings.solver} {garment.name} {seq.name}", unit="frame") if show_progress \
+        else None  # fmt: skip
+    try:
+        for k in range(S + T):
+            t0 = time.perf_counter()
+            body_v = (verts[k + 1] - verts[k]) * fps
+            pin_v = (pin_q[k + 1] - pin_q[k]) * fps
+            scene.begin_frame()
+            for j in range(1, n_sub + 1):
+                a = j / n_sub
+                scene.set_body(((1 - a) * verts[k] + a * verts[k + 1]).astype(np.float32), body_v.astype(np.float32))
+                scene.set_pinned(((1 - a) * pin_q[k] + a * pin_q[k + 1]).astype(np.float32), pin_v.astype(np.float32))
+                scene.step(dt)
+            x = scene.positions().astype(np.float64)
+            frame = k - S
+            if not np.isfinite(x).all():
+                bad = int((~np.isfinite(x)).any(1).sum())
+                raise SimulationDiverged(garment.name, seq.name, frame, T, f"{bad} vertices became NaN/Inf", settings)
+            speed = float(np.linalg.norm(x - x_prev, axis=1).max() * fps)
+            max_speed = max(max_speed, speed)
+            if speed > settings.max_speed:
+                raise SimulationDiverged(garment.name, seq.name, frame, T,
+                                         f"a vertex moved at {speed:.3g} m/s (limit max_speed={settings.max_speed:g})",
+                                         settings)  # fmt: skip
+            ratio = np.linalg.norm(x[edges[:, 1]] - x[edges[:, 0]], axis=1) / rest_len
+            if ratio.max() > MAX_STRETCH:
+                raise SimulationDiverged(garment.name, seq.name, frame, T,
+                                         f"an edge stretched to {ratio.max():.1f}x its rest length", settings)  # fmt: skip
+            x_prev = x
+            if frame >= 0:
+                out[frame] = x
+            timings["settle" if frame < 0 else "sequence"] += time.perf_counter() - t0
+            if bar is not None:
+                bar.update(1)
+    finally:
+        if bar is not None:
+            bar.close()
+    stats = {"max_speed": max_speed, "device": device, "n_substeps": (S + T) * n_sub, **_versions()}
+    return out, timings, stats
+
+
+def simulate_record(
+    garment,
+    seq,
+    body,
+    material: Material | None = None,
+    solver: str = "vbd",
+    *,
+    cache: bool = True,
+    force: bool = False,
+    progress: bool = True,
+    **settings,
+) -> SimulationRecord:
+    """Like :func:`simulate`, returning a :class:`SimulationRecord` (vertices, original timings, stats)."""
+    material = material or Material()
+    cfg = SimSettings.for_solver(solver, **settings)
+    if seq.poses.shape[1] != body.n_joints:
+        raise ValueError(f"sequence {seq.name!r} has {seq.poses.shape[1]} joints, body {body.name} has {body.n_joints}")
+    if garment.pins.numel() and int(garment.pins.max()) >= garment.n_vertices:
+        raise ValueError(f"garment {garment.name!r} pins index vertex {int(garment.pins.max())} of {garment.n_vertices}")
+    t0 = time.perf_counter()
+    if cfg.device is None:
+        cfg = cfg.with_(device="cuda:0" if torch.cuda.is_available() else "cpu")
+    device_kind = cfg.device.split(":")[0]
+    key = content_hash(
+        CACHE_VERSION, garment.vertices, garment.faces, garment.pins if cfg.pins else None, garment.betas,
+        seq.betas, seq.poses, seq.trans, float(seq.fps), _body_key(body), material.to_dict(),
+        {**cfg.to_dict(), "device": device_kind}, _versions(),
+    )  # fmt: skip
+    path = _cache_path(garment, seq, cfg, key)
+    if cache and not force and path.exists():
+        try:
+            with np.load(path) as data:
+                verts, meta = data["vertices"], json.loads(str(data["meta"]))
+            if verts.shape == (seq.n_frames, garment.n_vertices, 3):
+                return SimulationRecord(torch.from_numpy(verts), meta["timings_s"], cfg, True, time.perf_counter() - t0,
+                                        str(path), meta["stats"])  # fmt: skip
+        except (OSError, ValueError, KeyError):
+            pass  # unreadable entry: simulate again and overwrite it
+    verts, timings, stats = _run(garment, seq, body, material, cfg, progress)
+    if cache:
+        meta = json.dumps({"timings_s": timings, "stats": stats, "settings": cfg.to_dict(), "garment": garment.name,
+                           "sequence": seq.name, "material": material.to_dict()})  # fmt: skip
+        with atomic_write(path) as f:
+            np.savez(f, vertices=verts, meta=np.array(meta))
+    return SimulationRecord(torch.from_numpy(verts), timings, cfg, False, time.perf_counter() - t0,
+                            str(path) if cache else None, stats)  # fmt: skip
+
+
+def simulate(
+    garment,
+    seq,
+    body,
+    material: Material | None = None,
+    solver: str = "vbd",
+    *,
+    substeps: int | None = None,
+    iterations: int | None = None,
+    settle_frames: int | None = None,
+    cache: bool = True,
+    progress: bool = True,
+    dtype: torch.dtype = torch.float32,
+    **settings,
+) -> torch.Tensor:
+    """Physics-based drape of ``garment`` over ``seq`` on ``body``: (T, V, 3) metres, one row per frame.
+
+    Args:
+        garment: :class:`drapebench.garments.Garment` (template on the rest body; ``pins`` are kinematic).
+        seq: :class:`drapebench.body.BodySequence` (all T frames are returned, transition included).
+        body: the :class:`drapebench.body.BodyModel` the sequence poses (its mesh is the collider).
+        material: :class:`drapebench.physics.Material` (default cotton); mapping in
+            :mod:`drapebench.reference.materials`.
+        solver: "vbd" (default) or "style3d"; defaults in ``conf/reference/<solver>.yaml``.
+        substeps, iterations, settle_frames: override the solver defaults (None keeps them); other
+            :class:`SimSettings` fields (pins, self_contact, contact_ke, damping, device, ...) as keywords.
+        cache: read/write ``data/cache/reference`` (keyed by garment, sequence, body model, material,
+            settings, device kind and Newton/warp versions); only complete successful runs are stored.
+        progress: show a frames/s progress bar (quiet under CI or without a TTY).
+        dtype: output dtype (float32 default).
+    Raises:
+        ValueError: bad settings, or a garment that starts inside the body.
+        SimulationDiverged: NaN, a vertex faster than ``max_speed`` or an edge torn past 4x its rest
+            length; names the garment, frame and what to change.
+    """
+    rec = simulate_record(garment, seq, body, material, solver, cache=cache, progress=progress, substeps=substeps,
+                          iterations=iterations, settle_frames=settle_frames, **settings)  # fmt: skip
+    return rec.vertices.to(dtype)
