@@ -140,34 +140,38 @@ def culled_body_vertices(
     body_rest: torch.Tensor,
     body_weights: torch.Tensor,
     margin: float = 0.1,
-    min_weight: float = 0.05,
+    min_share: float = 0.05,
 ) -> torch.Tensor:
     """Body vertices a garment can touch under pose: sorted (C,) long indices into the body.
 
     garment_rest (V,3) and body_rest (Vb,3) in the same rest pose (m); body_weights (Vb,J) skinning
-    weights. Takes the joints that drive the body within ``margin`` (m) of the garment at rest
-    (weight > ``min_weight``), then every body vertex skinned to those joints. Whole joint-driven
-    parts are kept, so the set stays valid when the body moves (a skirt keeps the pelvis and legs,
-    never the head).
+    weights. The body vertices near the garment at rest (within ``margin`` m of it, plus the nearest
+    body vertex of every garment vertex) name the joints that drive that region (their dominant
+    joints); every body vertex skinned at least ``min_share`` to those joints is kept, with the near
+    vertices. Whole joint-driven parts are kept, so the set stays valid when the body moves: a skirt
+    keeps the pelvis, spine and legs, never the head or the arms.
     """
     if garment_rest.dim() != 2 or body_rest.dim() != 2 or body_weights.shape[0] != body_rest.shape[0]:
         raise ValueError("culled_body_vertices takes garment_rest (V,3), body_rest (Vb,3) and body_weights (Vb,J) "
                          f"in the rest pose, got {tuple(garment_rest.shape)}, {tuple(body_rest.shape)}, "
                          f"{tuple(body_weights.shape)}")  # fmt: skip
-    tree = cKDTree(garment_rest.detach().cpu().double().numpy())
-    d, _ = tree.query(body_rest.detach().cpu().double().numpy(), distance_upper_bound=margin, workers=1)
-    near = torch.from_numpy(np.isfinite(d))
+    g = garment_rest.detach().cpu().double().numpy()
+    b = body_rest.detach().cpu().double().numpy()
+    d, _ = cKDTree(g).query(b, distance_upper_bound=margin, workers=1)
+    near = np.isfinite(d)
+    near[cKDTree(b).query(g, workers=1)[1]] = True
+    near = torch.from_numpy(near)
     w = body_weights.detach().cpu()
-    joints = (w[near] > min_weight).any(0)
-    keep = (w[:, joints] > min_weight).any(1) | near
+    joints = torch.unique(w[near].argmax(1))
+    keep = (w[:, joints].sum(1) >= min_share) | near
     return torch.nonzero(keep).squeeze(1).to(body_rest.device)
 
 
 def culled_body_faces(body_faces: torch.Tensor, candidates: torch.Tensor) -> torch.Tensor:
-    """Indices (Fc,) of the body faces whose three vertices are all in ``candidates`` (C,)."""
+    """Indices (Fc,) of the body faces with at least one vertex in ``candidates`` (C,)."""
     mask = torch.zeros(int(body_faces.max()) + 1, dtype=torch.bool, device=body_faces.device)
     mask[candidates.to(body_faces.device)] = True
-    return torch.nonzero(mask[body_faces].all(1)).squeeze(1)
+    return torch.nonzero(mask[body_faces].any(1)).squeeze(1)
 
 
 # --- exact point-triangle distance ----------------------------------------------------------------
@@ -293,8 +297,8 @@ def closest_body_point(
     """Exact closest point on the posed body triangle mesh and the signed distance (negative inside).
 
     points (B,N,3) m; body_vertices (B,Vb,3) (or (1,Vb,3)); body_faces (F,3) long; ``candidates``
-    (C,) body vertex indices (see :func:`culled_body_vertices`): only faces with all three vertices
-    among them are searched. Distances are exact (float64 internally); the sign is the pseudonormal
+    (C,) body vertex indices (see :func:`culled_body_vertices`): only faces touching them are
+    searched. Distances are exact (float64 internally); the sign is the pseudonormal
     test of the closest face/edge/vertex, exact for a closed mesh such as each component of the body
     (a point inside one part but closest to the surface of another part that overlaps it, which only
     happens where the posed body intersects itself, reads as outside).
@@ -308,7 +312,7 @@ def closest_body_point(
     cand = _check_candidates(candidates, body_vertices.shape[1], faces.device)
     face_ids = torch.arange(len(faces), device=faces.device) if cand is None else culled_body_faces(faces, cand)
     if len(face_ids) == 0:
-        raise ValueError("no body face has all three vertices among the candidates; widen the culling margin")
+        raise ValueError("no body face touches the candidate vertices; check the candidates")
     mesh = _MeshIndex.build(faces[face_ids])
     shared = body_vertices.stride(0) == 0
     dist, point, face = [], [], []
