@@ -7,13 +7,17 @@ frame), ``prediction.h5``, ``drape.rrd`` (unless ``viz=none``), ``config.yaml`` 
 
 from __future__ import annotations
 
+import json
 import logging
+import os
 import platform
 import subprocess
 import time
 from importlib import metadata
 from pathlib import Path
 
+import numpy as np
+import pandas as pd
 import torch
 from omegaconf import DictConfig, OmegaConf
 
@@ -50,6 +54,29 @@ def environment(device: str) -> dict:
     }  # fmt: skip
 
 
+def job_threads(cfg: DictConfig) -> int:
+    """Torch threads for this job: ``cfg.threads``, else the cores this process may use divided by the
+    jobs the launcher runs at once (joblib ``n_jobs``; submitit ``cpus_per_task`` is taken as is)."""
+    if cfg.threads is not None:
+        if int(cfg.threads) < 1:
+            raise ValueError(f"threads must be >= 1 (or null for automatic), got {cfg.threads}")
+        return int(cfg.threads)
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    try:
+        from hydra.core.hydra_config import HydraConfig
+
+        launcher = HydraConfig.get().launcher
+    except ValueError:  # not inside a Hydra job (e.g. run() called from Python)
+        return cores
+    if launcher.get("cpus_per_task"):
+        return int(launcher.cpus_per_task)
+    n_jobs = launcher.get("n_jobs")
+    if not n_jobs:
+        return cores
+    parallel = min(cores, int(n_jobs) if n_jobs > 0 else max(1, cores + 1 + int(n_jobs)))
+    return max(1, cores // parallel)
+
+
 def _method_class(cfg: DictConfig):
     import methods
 
@@ -57,51 +84,110 @@ def _method_class(cfg: DictConfig):
     return methods.get(impl)
 
 
+def _valid(path: Path) -> bool:
+    """True if cache file ``path`` exists and matches the SHA-256 in its ``.sha256`` sidecar."""
+    sums = path.with_name(path.name + ".sha256")
+    if not path.exists():
+        return False
+    if sums.exists() and sums.read_text().strip() == file_checksum(path):
+        return True
+    log.warning("cache file %s fails its checksum; rebuilding it", path)
+    return False
+
+
+def _seal(path: Path) -> None:
+    """Write the checksum sidecar that :func:`_valid` checks (after ``path`` is complete)."""
+    with atomic_write(path.with_name(path.name + ".sha256"), "w") as f:
+        f.write(file_checksum(path))
+
+
 def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict):
-    """Train, or load a checkpoint whose hash (method + training config + garment + body) matches."""
+    """Train, or load a checkpoint whose hash (method + training config + garment + body + material) matches."""
     key = content_hash(OmegaConf.to_container(cfg.method, resolve=True), train_cfg, garment.vertices, garment.faces,
                        cfg.body.name, OmegaConf.to_container(cfg.material, resolve=True))  # fmt: skip
     path = cache_dir("checkpoints") / f"{cfg.method.name}_{key}.pt"
-    sums = path.with_suffix(".sha256")
-    if path.exists() and not cfg.force:
-        if sums.exists() and sums.read_text().strip() == file_checksum(path):
-            state = torch.load(path, map_location="cpu", weights_only=False)
-            method.bind(data.body, data.material)
-            method.load_state_dict(state["method"])
-            log.info("loaded checkpoint %s (trained in %.1f s)", path.name, state["train_s"])
-            return state["train_s"], str(path)
-        log.warning("checkpoint %s fails its checksum; retraining", path.name)
+    if not cfg.force and _valid(path):
+        state = torch.load(path, map_location="cpu", weights_only=False)
+        method.bind(data.body, data.material)
+        method.load_state_dict(state["method"])
+        log.info("loaded checkpoint %s (trained in %.1f s)", path.name, state["train_s"])
+        return state["train_s"], str(path)
     report = method.fit(data, train_cfg)
     state = method.state_dict()
-    if state:
-        with atomic_write(path, mode=None) as tmp:
-            torch.save({"method": state, "train_s": report.train_s, "history": report.history}, tmp)
-        with atomic_write(sums, "w") as f:
-            f.write(file_checksum(path))
-    return report.train_s, str(path) if state else None
+    if not state:
+        return report.train_s, None
+    with atomic_write(path, mode=None) as tmp:
+        torch.save({"method": state, "train_s": report.train_s, "history": report.history}, tmp)
+    _seal(path)
+    return report.train_s, str(path)
+
+
+def _metrics_code_hash() -> str:
+    """Hash of the sources the metrics depend on, so cached evaluations expire when they change."""
+    pkg = PROJECT_ROOT / "drapebench"
+    files = [pkg / "metrics.py", *sorted((pkg / "geometry").glob("*.py")), *sorted((pkg / "physics").glob("*.py"))]
+    return content_hash([f.read_bytes() for f in files])
+
+
+def _evaluate(cfg: DictConfig, garment, seq, body, prediction, reference, material):
+    """:func:`drapebench.metrics.evaluate`, cached by content hash of everything it reads (a
+    deterministic method's second identical run reuses it)."""
+    from drapebench.metrics import evaluate
+
+    opts = {"skip_transition": bool(cfg.eval.skip_transition), "energies": bool(cfg.eval.energies)}
+    key = content_hash(_metrics_code_hash(), prediction, reference, garment.vertices, garment.faces, seq.betas,
+                       seq.poses, seq.trans, seq.n_transition, cfg.body.name, body.v_template, material, opts)  # fmt: skip
+    path = cache_dir("evaluations") / f"{garment.kind}_{seq.name}_{key}.npz"
+    if not cfg.force and _valid(path):
+        with np.load(path) as z:
+            summary = json.loads(str(z["summary"]))
+            columns = json.loads(str(z["columns"]))
+            return summary, pd.DataFrame({c: z[f"col_{i}"] for i, c in enumerate(columns)})
+    summary, frames = evaluate(garment, seq, body, prediction, reference=reference, material=material, **opts)
+    with atomic_write(path) as f:
+        np.savez(f, summary=np.array(json.dumps(summary, default=float)), columns=np.array(json.dumps(list(frames.columns))),
+                 **{f"col_{i}": frames[c].to_numpy() for i, c in enumerate(frames.columns)})  # fmt: skip
+    _seal(path)
+    return summary, frames
+
+
+def _reference(cfg: DictConfig, garment, seq, body, material):
+    """Physics-based drape (T, V, 3) of the test sequence (cached by drapebench.reference), or None."""
+    ref = OmegaConf.to_container(cfg.reference, resolve=True)
+    solver = ref.pop("solver")
+    if solver is None:
+        return None
+    from drapebench.reference import simulate_record
+
+    rec = simulate_record(garment, seq, body, material, solver, force=bool(cfg.force), **ref)
+    log.info("reference %s: %s", solver, f"loaded from {rec.path}" if rec.from_cache else f"simulated in {rec.sim_s:.1f} s")
+    return rec.vertices.to(garment.vertices.dtype)
 
 
 def run(cfg: DictConfig, out_dir: str | Path | None = None) -> dict:
-    """Run one experiment described by ``cfg``; returns the flat metrics record."""
+    """Run one experiment described by ``cfg``; writes the run's files into ``out_dir`` (default: the
+    Hydra run directory) and returns the flat metrics record."""
     from drapebench.body import load_body, make_sequence
     from drapebench.body.dataset import build_dataset, load_dataset
     from drapebench.garments import make_garment
-    from drapebench.metrics import evaluate
     from drapebench.physics import Material
     from drapebench.store import TrainData, write_prediction
 
+    t_start = time.perf_counter()
+    viz = getattr(cfg.viz, "name", cfg.viz)  # a VizMode member once validated by the schema
+    if viz not in ("rerun", "none"):
+        raise ValueError(f"viz must be 'rerun' or 'none', not {viz!r}")
     if out_dir is None:
         from hydra.core.hydra_config import HydraConfig
 
         out_dir = HydraConfig.get().runtime.output_dir
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    torch.set_num_threads(int(cfg.threads))
+    (out / "metrics.json").unlink(missing_ok=True)  # a rerun into the same folder is incomplete until it ends
+    torch.set_num_threads(job_threads(cfg))
     torch.manual_seed(int(cfg.seed))
     method_cls = _method_class(cfg)  # fail fast on an unknown method
-    if cfg.reference.solver is not None:
-        raise ValueError(f"reference solver {cfg.reference.solver!r} is not available in this version; use reference=none")
-    timings = {}
+    stages = {}
     t = time.perf_counter()
     body = load_body(cfg.body.name, device=cfg.device)
     material = Material.from_config(OmegaConf.to_container(cfg.material, resolve=True))
@@ -109,23 +195,32 @@ def run(cfg: DictConfig, out_dir: str | Path | None = None) -> dict:
     m = cfg.motion
     seq = make_sequence(m.name, int(m.n_frames), float(m.fps), int(m.seed), betas=None if m.betas is None else list(m.betas),
                         transition=int(m.transition), split="test", **m.params)  # fmt: skip
-    timings["scene_s"] = time.perf_counter() - t
+    stages["scene_s"] = time.perf_counter() - t
     log.info("scene: %s (%d vertices) on %s, %s (%d frames) in %.1f s", garment.kind, garment.n_vertices, body.name, seq.name,
-             seq.n_frames, timings["scene_s"])  # fmt: skip
+             seq.n_frames, stages["scene_s"])  # fmt: skip
+
+    t = time.perf_counter()
+    reference = _reference(cfg, garment, seq, body, material)
+    if reference is not None:
+        stages["reference_s"] = time.perf_counter() - t
 
     method = method_cls(OmegaConf.to_container(cfg.method.params, resolve=True))
     train_cfg = OmegaConf.to_container(cfg.train, resolve=True)
+
     def load_train():
         return load_dataset(build_dataset(cfg.train.dataset, force=cfg.force))
 
     data = TrainData(body=body, material=material, garment=garment, load_train=load_train, test_sequences=[seq])
+    t = time.perf_counter()
     train_s, ckpt = _checkpoint(method, cfg, garment, data, train_cfg)
+    stages["fit_s"] = time.perf_counter() - t
 
     t = time.perf_counter()
     result = method.drape(garment, seq)
     drape_s = time.perf_counter() - t
-    summary, frames = evaluate(garment, seq, body, result.vertices, material=material,
-                               skip_transition=cfg.eval.skip_transition, energies=cfg.eval.energies)  # fmt: skip
+    t = time.perf_counter()
+    summary, frames = _evaluate(cfg, garment, seq, body, result.vertices, reference, material)
+    stages["eval_s"] = time.perf_counter() - t
     record = {
         "method": cfg.method.name, "garment": cfg.garment.kind, "motion": m.name, "body": cfg.body.name,
         "n_vertices": garment.n_vertices, "n_frames": seq.n_frames, **summary,
@@ -134,23 +229,25 @@ def run(cfg: DictConfig, out_dir: str | Path | None = None) -> dict:
         "seed": int(cfg.seed), "experiment": cfg.experiment_name, "checkpoint": ckpt, "commit": git_commit(),
     }  # fmt: skip
     write_prediction(out / "prediction.h5", result.vertices, garment.faces, method=cfg.method.name, garment=garment.kind,
-                     motion=seq.name, fps=seq.fps)  # fmt: skip
+                     motion=seq.name, body=cfg.body.name, fps=seq.fps, n_transition=seq.n_transition)  # fmt: skip
     with atomic_write(out / "frames.csv", "w") as f:
         frames.to_csv(f, index=False)
     with atomic_write(out / "config.yaml", "w") as f:
         f.write(OmegaConf.to_yaml(cfg, resolve=True))
     write_json(out / "env.json", environment(cfg.device))
-    if cfg.viz == "rerun":
+    if viz == "rerun":
         from drapebench.geometry.proximity import nearest_body_vertex
         from drapebench.viz import record_drape
 
+        t = time.perf_counter()
         nn = nearest_body_vertex(result.vertices, seq.vertices(body), seq.vertex_normals(body))
         record_drape(out / "drape.rrd", seq.vertices(body), body.faces, result.vertices, garment.topology, seq.fps,
-                     penetrating=nn.distance < 0, name=f"{cfg.method.name}_{garment.kind}_{seq.name}")  # fmt: skip
-    elif cfg.viz != "none":
-        raise ValueError(f"viz must be 'rerun' or 'none', not {cfg.viz!r}")
+                     penetrating=nn.distance < 0, reference=reference, name=f"{cfg.method.name}_{garment.kind}_{seq.name}")  # fmt: skip
+        stages["viz_s"] = time.perf_counter() - t
+    stages["total_s"] = time.perf_counter() - t_start
+    record.update(stages)
     write_json(out / "metrics.json", record)  # last: its presence marks a complete run
-    log.info("%s", " ".join(f"{k}={record[k]:.3g}" for k in ("eps_e", "eps_a", "eps_c", "ms_per_frame")))
+    log.info("%s", " ".join(f"{k}={record[k]:.3g}" for k in ("eps_e", "eps_a", "eps_c", "ms_per_frame", "total_s")))
     log.info("results in %s", out)
     return record
 

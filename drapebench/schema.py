@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from enum import Enum
 from typing import Any, Dict, List, Optional
 
 from hydra.core.config_store import ConfigStore
@@ -62,13 +63,32 @@ class TrainConf:
 
 @dataclass
 class ReferenceConf:
-    solver: Optional[str] = None  # None: no physics-based reference in this run
+    """Physics-based reference of the test sequence (drapebench.reference.SimSettings fields;
+    None keeps the solver's default from conf/reference/<solver>.yaml)."""
+
+    solver: Optional[str] = None  # None: no reference in this run (reference=none)
+    substeps: Optional[int] = None
+    iterations: Optional[int] = None
+    settle_frames: Optional[int] = None
+    pins: Optional[bool] = None
+    self_contact: Optional[bool] = None
+    contact_ke: Optional[float] = None
+    contact_kd: Optional[float] = None
+    contact_gap: Optional[float] = None
+    damping: Optional[float] = None
+    max_speed: Optional[float] = None
+    device: Optional[str] = None  # None: cuda when available, else cpu
 
 
 @dataclass
 class EvalConf:
     skip_transition: bool = True
     energies: bool = True
+
+
+class VizMode(Enum):
+    rerun = "rerun"  # drape.rrd in the run directory
+    none = "none"  # no recording (costs nothing)
 
 
 @dataclass
@@ -81,10 +101,10 @@ class Config:
     train: TrainConf = field(default_factory=TrainConf)
     reference: ReferenceConf = field(default_factory=ReferenceConf)
     eval: EvalConf = field(default_factory=EvalConf)
-    viz: str = "rerun"  # rerun | none
+    viz: VizMode = VizMode.rerun
     force: bool = False  # rebuild cached data, checkpoints and references
     seed: int = 0
-    threads: int = 2
+    threads: Optional[int] = None  # torch threads per job; None: the job's share of the CPU cores
     device: str = "cpu"
     experiment_name: str = "default"
 

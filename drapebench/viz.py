@@ -38,11 +38,13 @@ def record_drape(
     garment_topology,
     fps: float,
     penetrating: torch.Tensor | None = None,
+    reference: torch.Tensor | None = None,
     name: str = "drape",
 ) -> Path:
     """Write ``path`` (.rrd): body (T, Vb, 3) and garment (T, V, 3) meshes on a ``frame`` timeline
     (and ``time`` in seconds); triangles are logged once as static, positions and colours per frame
-    in columns. Garment colours show strain; ``penetrating`` (T, V) bool vertices are magenta."""
+    in columns. Garment colours show strain; ``penetrating`` (T, V) bool vertices are magenta. An
+    optional physics-based ``reference`` (T, V, 3) is logged as ``reference`` (blue, hidden by default)."""
     import rerun as rr
     import rerun.blueprint as rrb
 
@@ -50,7 +52,8 @@ def record_drape(
     colors = strain_colors(garment_vertices.double(), garment_topology.to(dtype=torch.float64))
     if penetrating is not None:
         colors[penetrating.numpy()] = (230, 0, 200)
-    blueprint = rrb.Blueprint(rrb.Spatial3DView(origin="/", name=name), rrb.TimePanel(state="collapsed"))
+    overrides = {"reference": rrb.EntityBehavior(visible=False)} if reference is not None else None
+    blueprint = rrb.Blueprint(rrb.Spatial3DView(origin="/", name=name, overrides=overrides), rrb.TimePanel(state="collapsed"))
     stream = rr.RecordingStream("drapebench", recording_id=f"{name}-{np.random.default_rng().integers(1 << 62)}")
     path = Path(path)
     with atomic_write(path, mode=None) as tmp:
@@ -68,6 +71,12 @@ def record_drape(
             "garment", indexes=index,
             columns=rr.Mesh3D.columns(vertex_positions=gv.reshape(-1, 3), vertex_colors=colors.reshape(-1, 3)).partition([gv.shape[1]] * T),
         )  # fmt: skip
+        if reference is not None:
+            rv = reference.detach().float().numpy()
+            stream.log("reference", rr.Mesh3D.from_fields(triangle_indices=garment_topology.faces.numpy().astype(np.uint32),
+                                                          albedo_factor=(0.35, 0.55, 0.95, 1.0)), static=True)  # fmt: skip
+            stream.send_columns("reference", indexes=index,
+                                columns=rr.Mesh3D.columns(vertex_positions=rv.reshape(-1, 3)).partition([rv.shape[1]] * T))  # fmt: skip
         stream.flush()
         stream.disconnect()
     return path

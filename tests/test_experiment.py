@@ -15,7 +15,7 @@ FAST = ["body=anny_lowres", "motion.n_frames=10", "motion.transition=3"]
 
 
 def run_py(args, tmp_path, timeout=240):
-    env = dict(os.environ, DRAPEBENCH_PROGRESS="0", HYDRA_FULL_ERROR="1")
+    env = dict(os.environ, DRAPEBENCH_PROGRESS="0", HYDRA_FULL_ERROR="1", CI="1")
     return subprocess.run([sys.executable, str(ROOT / "run.py"), *args], cwd=tmp_path, env=env, capture_output=True,
                           text=True, timeout=timeout)  # fmt: skip
 
@@ -31,10 +31,13 @@ def test_single_run_writes_every_output(tmp_path):
                 "edge_mm", "smoothness", "penetration_mm", "jitter", "ms_per_frame", "train_s"):  # fmt: skip
         assert key in rec, key
     assert rec["method"] == "lbs" and rec["body"] == "anny_lowres" and rec["n_frames"] == 13
+    assert rec["total_s"] >= rec["eval_s"] > 0 and rec["ms_per_frame"] > 0
     env = json.loads((out / "env.json").read_text())
-    assert env["versions"]["torch"] and env["torch_threads"] == 2
+    assert env["versions"]["torch"] and env["torch_threads"] == len(os.sched_getaffinity(0))  # threads=null: all cores
     rerun = Path(sys.executable).parent / "rerun"
-    v = subprocess.run([str(rerun), "rrd", "verify", str(out / "drape.rrd")], capture_output=True, text=True, timeout=60)
+    # CI=1 keeps the rerun CLI from writing its analytics settings into ~/.config
+    v = subprocess.run([str(rerun), "rrd", "verify", str(out / "drape.rrd")], capture_output=True, text=True, timeout=60,
+                       env=dict(os.environ, CI="1"))  # fmt: skip
     assert v.returncode == 0, v.stderr
 
 
@@ -65,6 +68,12 @@ def test_unknown_names_list_the_valid_choices():
         _compose(["garment=poncho"])
     with pytest.raises(ConfigCompositionException, match="viz_mode"):
         _compose(["viz_mode=1"])
+    with pytest.raises(ConfigCompositionException) as err:
+        _compose(["viz=rr"])
+    assert "expected one of [rerun, none]" in str(err.value.__cause__)
+    with pytest.raises(ConfigCompositionException) as err:
+        _compose(["reference.substep=3"])
+    assert "Key 'substep' not in 'ReferenceConf'" in str(err.value.__cause__)
     with pytest.raises(ConfigCompositionException, match="Error merging override motion.n_frames=abc"):
         _compose(["motion.n_frames=abc"])
 
@@ -75,17 +84,94 @@ def test_every_experiment_config_composes():
         assert cfg.experiment_name == exp.stem
 
 
-def test_second_run_reuses_the_cache_and_interrupted_runs_leave_no_metrics(tmp_path):
+def _fresh(extra=()):
+    """A config whose test sequence nothing has cached yet (a new motion seed), so cache use is observable."""
+    seed = int.from_bytes(os.urandom(3), "little")
+    return _compose([*FAST, "viz=none", "motion.n_frames=4", "motion.transition=1", f"motion.seed={seed}", *extra]), f"walk_s{seed}"
+
+
+def test_second_run_reuses_the_evaluation_and_a_corrupt_cache_entry_is_rebuilt(tmp_path, monkeypatch):
+    import drapebench.metrics
+    from drapebench.cache import cache_dir
     from drapebench.experiment import run
 
-    cfg = _compose([*FAST, "viz=none"])
-    run(cfg, tmp_path / "a")
-    assert (tmp_path / "a" / "metrics.json").exists()
-    bad = _compose([*FAST, "viz=bogus"])  # fails after the prediction is written, before metrics.json
-    with pytest.raises(ValueError, match="viz must be"):
-        run(bad, tmp_path / "b")
-    assert not (tmp_path / "b" / "metrics.json").exists()
-    assert not list((tmp_path / "b").glob(".*.tmp"))
+    calls = []
+    evaluate = drapebench.metrics.evaluate
+    monkeypatch.setattr(drapebench.metrics, "evaluate", lambda *a, **k: calls.append(1) or evaluate(*a, **k))
+    cfg, seq_name = _fresh()
+    first = run(cfg, tmp_path / "a")
+    assert len(calls) == 1
+    second = run(cfg, tmp_path / "b")
+    assert len(calls) == 1, "identical second run evaluated again"
+    assert second["eps_c"] == first["eps_c"] and second["jitter"] == first["jitter"]
+    (entry,) = cache_dir("evaluations").glob(f"tshirt_{seq_name}_*.npz")
+    data = bytearray(entry.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    entry.write_bytes(bytes(data))
+    third = run(cfg, tmp_path / "c")
+    assert len(calls) == 2, "corrupt cache entry was used"
+    assert third["eps_c"] == first["eps_c"]
+    run(cfg, tmp_path / "d")
+    assert len(calls) == 2  # the rebuilt entry is valid again
+
+
+def test_interrupted_run_leaves_no_complete_looking_file(tmp_path, monkeypatch):
+    import drapebench.viz
+    from drapebench.cache import atomic_write
+    from drapebench.experiment import run
+
+    def crash(path, *args, **kwargs):
+        with atomic_write(path, "w") as f:
+            f.write("half a recording")
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(drapebench.viz, "record_drape", crash)
+    cfg = _compose(FAST)
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "metrics.json").write_text("{}")  # left by an earlier run into the same folder
+    with pytest.raises(KeyboardInterrupt):
+        run(cfg, out)
+    assert not (out / "metrics.json").exists() and not (out / "drape.rrd").exists()
+    assert not list(out.glob(".*.tmp"))
+
+
+def test_reference_adds_vertex_error(tmp_path, monkeypatch):
+    import torch
+
+    import drapebench.reference
+    from drapebench.experiment import run
+    from drapebench.reference import SimSettings, SimulationRecord
+    from methods.lbs import LBSMethod
+
+    seen = {}
+
+    def fake_simulate_record(garment, seq, body, material, solver, **settings):
+        """A 'reference' 2 mm above the LBS drape."""
+        seen.update(settings, solver=solver)
+        lbs = LBSMethod({})
+        lbs.bind(body, material)
+        x = lbs.drape(garment, seq).vertices + torch.tensor([0.0, 0.0, 0.002])
+        return SimulationRecord(x, {"sequence": 1.0}, SimSettings(), from_cache=False)
+
+    monkeypatch.setattr(drapebench.reference, "simulate_record", fake_simulate_record)
+    cfg, _ = _fresh(["reference.solver=vbd", "reference.substeps=3", "viz=rerun"])
+    rec = run(cfg, tmp_path / "r")
+    assert seen["solver"] == "vbd" and seen["substeps"] == 3 and seen["force"] is False
+    assert rec["vertex_error_mm"] == pytest.approx(2.0, rel=1e-3)
+    assert rec["reference_s"] >= 0 and (tmp_path / "r" / "drape.rrd").exists()
+
+
+@pytest.mark.slow
+def test_joblib_launcher_runs_jobs_in_parallel_with_their_share_of_threads(tmp_path):
+    sweep = tmp_path / "sweep"
+    p = run_py(["-m", "hydra/launcher=joblib", "hydra.launcher.n_jobs=2", *FAST, "garment=tshirt,skirt", "viz=none",
+                f"hydra.sweep.dir={sweep}"], tmp_path)  # fmt: skip
+    assert p.returncode == 0, p.stderr[-3000:]
+    assert len((sweep / "summary.csv").read_text().strip().splitlines()) == 3
+    cores = len(os.sched_getaffinity(0))
+    for env in sweep.glob("*/env.json"):
+        assert json.loads(env.read_text())["torch_threads"] == max(1, cores // min(cores, 2))
 
 
 @pytest.mark.slow

@@ -1,0 +1,35 @@
+"""prediction.h5 round trip, atomic writes and lazily loaded training data."""
+
+import h5py
+import numpy as np
+import pytest
+import torch
+
+from drapebench.store import TrainData, read_prediction, write_prediction
+
+
+def test_prediction_round_trip(tmp_path):
+    x = torch.rand(5, 7, 3)
+    faces = torch.tensor([[0, 1, 2], [2, 3, 4]])
+    write_prediction(tmp_path / "p.h5", x, faces, method="lbs", fps=30.0)
+    v, f, attrs = read_prediction(tmp_path / "p.h5")
+    assert v.dtype == np.float32 and np.array_equal(v, x.numpy())
+    assert np.array_equal(f, faces.numpy()) and attrs["method"] == "lbs" and attrs["fps"] == 30.0
+
+
+def test_failed_write_keeps_the_old_file(tmp_path):
+    path = tmp_path / "p.h5"
+    write_prediction(path, torch.zeros(2, 3, 3), torch.tensor([[0, 1, 2]]))
+    with pytest.raises(TypeError):
+        write_prediction(path, torch.ones(2, 3, 3), torch.tensor([[0, 1, 2]]), bad=object())  # unstorable attribute
+    with h5py.File(path) as f:
+        assert f["vertices"][()].max() == 0  # the earlier, complete file
+    assert [p.name for p in tmp_path.iterdir()] == ["p.h5"]
+
+
+def test_train_sequences_load_once_and_lazily():
+    calls = []
+    data = TrainData(body=None, material=None, garment=None, load_train=lambda: calls.append(1) or ["a", "b"])
+    assert calls == []
+    assert data.train_sequences == ["a", "b"] and data.train_sequences == ["a", "b"]
+    assert calls == [1]
