@@ -1,14 +1,23 @@
-"""One metric suite for every method (definitions in DESIGN.md).
+"""One metric suite for every method (definitions in DESIGN.md, "Metrics").
 
-Per frame: ``eps_e`` / ``eps_a`` mean absolute relative change (%) of edge lengths / face areas vs
-the template; ``eps_c`` % of vertices inside the posed body (exact signed distance < 0);
-``eps_c_nn`` the same by nearest-body-vertex normal distance (how the GAPS code counts);
-``edge_mm`` mean absolute edge-length change (mm); ``smoothness`` mean |cotangent Laplacian| of
-the positions (m); ``penetration_mm`` mean depth of penetrating vertices (0 if none); ``jitter``
-mean |second difference| of positions (mm, frames with both neighbours); ``vertex_error_mm`` mean
-distance to the reference when one is given; energies (J; collision unweighted, m^3).
-The summary averages over frames (``eps_c_std`` is the std over frames); by default the
-sequence's transition frames (rest pose -> motion) are left out.
+Per frame, for garment positions x (T, V, 3) against the template (``garment.topology``) and the
+posed body of the sequence:
+
+- ``eps_e`` / ``eps_a``: mean absolute relative change (%) of edge lengths / face areas;
+- ``eps_c``: % of vertices inside the body (exact signed distance to the body mesh < 0);
+- ``eps_c_nn``: % of vertices with nearest-body-vertex normal distance n . (x - v) < 0 (how the GAPS
+  code counts collisions);
+- ``edge_mm``: mean absolute edge-length change (mm); ``smoothness``: mean |cotangent Laplacian| of
+  the positions (m);
+- ``penetration_mm``: mean depth of the penetrating vertices (mm, 0 when none);
+- ``jitter``: mean |x[t+1] - 2 x[t] + x[t-1]| (mm; NaN at the first and last frame);
+- ``vertex_error_mm``: mean distance to the reference drape (mm), when one is given;
+- ``energy_<name>``: :func:`drapebench.physics.energy_terms` per frame (J; collision in m^3, unweighted).
+
+The summary is the mean over the evaluated frames, except ``eps_c_std`` (std over frames of
+``eps_c``) and ``penetration_mm`` (mean depth over all penetrating vertices of all frames). The
+sequence's leading transition frames (rest pose -> motion) are left out by default. Body queries
+only look at the body parts near the garment (:func:`culled_body_vertices`).
 """
 
 from __future__ import annotations
@@ -18,20 +27,30 @@ import pandas as pd
 import torch
 
 from drapebench.geometry.ops import edge_lengths, face_areas
-from drapebench.geometry.proximity import nearest_body_vertex, signed_distance
-from drapebench.physics.energies import collision_energy, laplacian
-from drapebench.physics.material import Material
-from drapebench.physics.terms import energy_terms
+from drapebench.geometry.proximity import culled_body_vertices, nearest_body_vertex, signed_distance
 
 
-def _check_prediction(prediction: torch.Tensor, n_frames: int, n_vertices: int, what: str) -> torch.Tensor:
-    p = torch.as_tensor(prediction)
+def _check_positions(x, n_frames: int, n_vertices: int, what: str) -> torch.Tensor:
+    """(T, V, 3) finite tensor, or a ValueError naming the shape or the frames with NaN/Inf."""
+    p = torch.as_tensor(x)
     if p.shape != (n_frames, n_vertices, 3):
-        raise ValueError(f"{what} has shape {tuple(p.shape)}; expected ({n_frames}, {n_vertices}, 3) for this garment and sequence")
-    bad = (~torch.isfinite(p)).any(-1).any(-1)
+        raise ValueError(f"{what} has shape {tuple(p.shape)}; expected ({n_frames}, {n_vertices}, 3) for this garment "
+                         "and sequence (one row per frame of the sequence, one per garment vertex)")  # fmt: skip
+    bad = (~torch.isfinite(p)).flatten(1).any(1)
     if bad.any():
-        raise ValueError(f"{what} contains NaN/Inf in frames {torch.nonzero(bad).squeeze(1)[:10].tolist()}")
+        frames = torch.nonzero(bad).squeeze(1).tolist()
+        more = f" and {len(frames) - 10} more" if len(frames) > 10 else ""
+        raise ValueError(f"{what} contains NaN/Inf in frames {frames[:10]}{more}")
     return p
+
+
+def body_candidates(garment, body) -> torch.Tensor:
+    """(C,) body vertices near the garment (:func:`culled_body_vertices` on the garment's body shape)."""
+    betas = getattr(garment, "betas", None)
+    rest = body.v_template
+    if betas is not None:
+        rest = body.shaped(torch.as_tensor(betas, dtype=rest.dtype)[None, : body.n_betas])[0][0]
+    return culled_body_vertices(garment.vertices, rest, body.weights)
 
 
 def evaluate(
@@ -40,67 +59,67 @@ def evaluate(
     body,
     prediction,
     reference=None,
-    material: Material | None = None,
+    material=None,
     skip_transition: bool = True,
     energies: bool = True,
 ) -> tuple[dict, pd.DataFrame]:
-    """Metrics of a drape.
+    """Metrics of a drape (definitions in the module docstring).
 
     Args:
-        garment: :class:`drapebench.garments.Garment` (its topology gives the template).
+        garment: :class:`drapebench.garments.Garment` (its ``topology`` is the template; ``vertices``
+            and ``betas`` select the body parts to query).
         seq: :class:`drapebench.body.BodySequence`; body: the :class:`BodyModel` it poses.
-        prediction: (T, V, 3) draped vertices for all T frames of ``seq``.
+        prediction: (T, V, 3) draped vertices (m) for all T frames of ``seq``.
         reference: optional (T, V, 3) physics-based drape of the same scene.
-        material: for the energy breakdown (default :class:`Material`).
-        skip_transition: leave the sequence's leading transition frames out of the metrics.
-        energies: include the per-frame energy breakdown.
+        material: :class:`drapebench.physics.Material` for the energy breakdown (default Material()).
+        skip_transition: leave the sequence's ``n_transition`` leading frames out.
+        energies: add the per-frame ``energy_*`` columns.
     Returns:
-        (summary dict, per-frame DataFrame).
+        (summary dict of floats, per-frame DataFrame with a ``frame`` column and one column per metric).
     """
-    material = material or Material()
     topo = garment.topology
-    x = _check_prediction(prediction, seq.n_frames, garment.n_vertices, "prediction").to(topo.dtype)
-    ref = None if reference is None else _check_prediction(reference, seq.n_frames, garment.n_vertices, "reference").to(topo.dtype)
+    x = _check_positions(prediction, seq.n_frames, garment.n_vertices, "prediction").to(topo.device, topo.dtype)
+    ref = None if reference is None else _check_positions(reference, seq.n_frames, garment.n_vertices, "reference")
     first = seq.n_transition if skip_transition and seq.n_transition < seq.n_frames else 0
-    frames = np.arange(first, seq.n_frames)
-    x_eval = x[first:]
-    body_v = seq.vertices(body)[first:].to(topo.dtype)
-    body_n = seq.vertex_normals(body)[first:].to(topo.dtype)
+    frames = torch.arange(first, seq.n_frames)
+    xe = x[first:]
+    body_v = seq.vertices(body)[first:].to(x.device, x.dtype)
+    body_n = seq.vertex_normals(body)[first:].to(x.device, x.dtype)
+    faces = body.faces.to(x.device)
+    cand = body_candidates(garment, body).to(x.device)
     with torch.no_grad():
-        lengths = edge_lengths(x_eval, topo.edges)
-        rel_e = (lengths - topo.rest_edge_lengths).abs() / topo.rest_edge_lengths
-        rel_a = (face_areas(x_eval, topo.faces) - topo.face_areas).abs() / topo.face_areas
-        sd = signed_distance(x_eval, body_v, body.faces)
-        nn = nearest_body_vertex(x_eval, body_v, body_n)
+        lengths = edge_lengths(xe, topo.edges)
+        d_len = (lengths - topo.rest_edge_lengths).abs()
+        rel_a = (face_areas(xe, topo.faces) - topo.face_areas).abs() / topo.face_areas
+        sd = signed_distance(xe, body_v, faces, cand)
+        nn = nearest_body_vertex(xe, body_v, body_n, cand)
         inside = sd < 0
-        depth = torch.where(inside, -sd, torch.zeros_like(sd))
         n_in = inside.sum(-1)
+        depth = torch.where(inside, -sd, torch.zeros_like(sd)).sum(-1)
+        lap = torch.sparse.mm(topo.laplacian, xe.permute(1, 0, 2).reshape(topo.n_vertices, -1))
         cols = {
-            "frame": frames,
-            "eps_e": rel_e.mean(-1) * 100,
+            "eps_e": (d_len / topo.rest_edge_lengths).mean(-1) * 100,
             "eps_a": rel_a.mean(-1) * 100,
             "eps_c": inside.to(x.dtype).mean(-1) * 100,
             "eps_c_nn": (nn.distance < 0).to(x.dtype).mean(-1) * 100,
-            "edge_mm": (lengths - topo.rest_edge_lengths).abs().mean(-1) * 1e3,
-            "smoothness": laplacian(x_eval, topo).norm(dim=-1).mean(-1),
-            "penetration_mm": torch.where(n_in > 0, depth.sum(-1) / n_in.clamp_min(1), torch.zeros_like(n_in, dtype=x.dtype)) * 1e3,
+            "edge_mm": d_len.mean(-1) * 1e3,
+            "smoothness": lap.reshape(topo.n_vertices, -1, 3).norm(dim=-1).mean(0),
+            "penetration_mm": depth / n_in.clamp_min(1) * 1e3,
         }
-        jitter = torch.full((len(frames),), float("nan"), dtype=x.dtype)
+        acc = torch.full((seq.n_frames,), float("nan"), dtype=x.dtype, device=x.device)
         if seq.n_frames >= 3:
-            acc = (x[2:] - 2 * x[1:-1] + x[:-2]).norm(dim=-1).mean(-1) * 1e3  # frames 1..T-2
-            for k, f in enumerate(frames):
-                if 1 <= f <= seq.n_frames - 2:
-                    jitter[k] = acc[f - 1]
-        cols["jitter"] = jitter
+            acc[1:-1] = (x[2:] - 2 * x[1:-1] + x[:-2]).norm(dim=-1).mean(-1) * 1e3
+        cols["jitter"] = acc[first:]
         if ref is not None:
-            cols["vertex_error_mm"] = (x_eval - ref[first:]).norm(dim=-1).mean(-1) * 1e3
+            cols["vertex_error_mm"] = (xe - ref[first:].to(x.device, x.dtype)).norm(dim=-1).mean(-1) * 1e3
         if energies:
-            terms = energy_terms(x_eval, topo, material)
-            terms["collision"] = collision_energy(x_eval, nn.point, nn.normal, material.collision_thickness)
-            for k, v in terms.items():
-                cols[f"energy_{k}"] = v
-    df = pd.DataFrame({k: (v.cpu().numpy() if isinstance(v, torch.Tensor) else v) for k, v in cols.items()})
-    summary = {k: float(np.nanmean(df[k])) for k in df.columns if k != "frame"}
+            from drapebench.physics import Material, energy_terms
+
+            terms = energy_terms(xe, topo, material or Material(), body_vertices=body_v, body_normals=body_n, candidates=cand)
+            cols.update({f"energy_{k}": v for k, v in terms.items()})
+    df = pd.DataFrame({"frame": frames.numpy(), **{k: v.detach().cpu().double().numpy() for k, v in cols.items()}})
+    summary = {k: float(df[k].mean()) for k in df.columns if k != "frame"}  # pandas skips the NaN jitter ends
     summary["eps_c_std"] = float(df["eps_c"].std(ddof=0))
-    summary["n_frames_evaluated"] = len(frames)
+    summary["penetration_mm"] = float(depth.sum() / n_in.sum().clamp_min(1) * 1e3)
+    summary["n_frames_evaluated"] = len(df)
     return summary, df

@@ -7,7 +7,6 @@ import trimesh
 
 from drapebench.body import BodyModel, BodySequence
 from drapebench.geometry import get_topology
-from drapebench.geometry.proximity import culled_body_vertices, nearest_body_vertex, signed_distance
 from drapebench.metrics import evaluate
 
 
@@ -67,22 +66,28 @@ def test_bad_prediction_is_reported(sphere_scene):
         evaluate(garment, seq, body, pred[:2])
 
 
-def test_proximity_matches_brute_force_and_culling(body_lowres):
-    from drapebench.body import make_sequence
-    from drapebench.garments import make_garment
+def test_lbs_drape_on_a_real_body_matches_unculled_queries(body_lowres):
+    """evaluate() culls the body; its eps_c / eps_c_nn equal counts over the whole body."""
+    from scipy.spatial import cKDTree
 
-    g = make_garment("skirt", body_lowres)
-    seq = make_sequence("walk", 8, seed=1)
-    bv, bn = seq.vertices(body_lowres), seq.vertex_normals(body_lowres)
-    x = g.vertices[None] + seq.trans[:, None]
-    nn = nearest_body_vertex(x, bv, bn)
-    brute = torch.cdist(x.double(), bv.double()).argmin(-1)
-    assert (nn.index == brute).float().mean() > 0.999
-    cand = culled_body_vertices(g.vertices, body_lowres.v_template, body_lowres.weights)
-    assert len(cand) < 0.8 * body_lowres.n_vertices
-    head = body_lowres.weights[:, body_lowres.joint_index("head")] > 0.5
-    assert not torch.isin(torch.nonzero(head).squeeze(1), cand).any()  # a skirt never looks at the head
-    assert torch.equal(nearest_body_vertex(x, bv, bn, cand).index, nn.index)
-    sd = signed_distance(x[:1], bv[:1], body_lowres.faces)
-    d2 = torch.cdist(x[0].double(), bv[0].double()).min(-1).values
-    assert (sd[0].abs() <= d2.float() + 1e-5).all()  # distance to the surface <= distance to its vertices
+    from drapebench.body import make_sequence
+    from drapebench.body.lbs import lbs
+    from drapebench.garments import make_garment
+    from drapebench.geometry.proximity import nearest_body_vertex, signed_distance
+
+    body = body_lowres
+    g = make_garment("tshirt", body)
+    seq = make_sequence("dance", 8, seed=4)
+    idx = torch.as_tensor(cKDTree(body.v_template.numpy()).query(g.vertices.numpy())[1])
+    x = lbs(g.vertices, body.weights[idx], seq.transforms(body))
+    summary, frames = evaluate(g, seq, body, x)
+    assert len(frames) == seq.n_frames - seq.n_transition == summary["n_frames_evaluated"]
+    bv, bn = seq.vertices(body)[seq.n_transition :], seq.vertex_normals(body)[seq.n_transition :]
+    xe = x[seq.n_transition :]
+    sd = signed_distance(xe, bv, body.faces)
+    assert np.allclose(frames["eps_c"], (sd < 0).float().mean(-1) * 100)
+    assert np.allclose(frames["eps_c_nn"], (nearest_body_vertex(xe, bv, bn).distance < 0).float().mean(-1) * 100)
+    depth = -sd[sd < 0]
+    assert np.isclose(summary["penetration_mm"], float(depth.mean()) * 1e3 if len(depth) else 0.0, rtol=1e-5)
+    for name in ("stvk", "bending", "gravity", "collision"):
+        assert np.isfinite(frames[f"energy_{name}"]).all()
