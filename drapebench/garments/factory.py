@@ -23,7 +23,7 @@ import torch
 from scipy.spatial import cKDTree
 
 from drapebench.cache import atomic_write, cache_dir, content_hash
-from drapebench.garments.fields import closed_field, loft_field, marching_cubes, signed_distance_grid
+from drapebench.garments.fields import SDF_BAND, closed_field, loft_field, marching_cubes, signed_distance_grid
 from drapebench.garments.garment import Garment
 from drapebench.garments.mesh_ops import cut_by_field, isotropic_remesh, keep_component_near
 from drapebench.garments.validate import validate_garment
@@ -33,7 +33,7 @@ TOPS = ("tshirt", "tank", "longsleeve")
 LOOSE = ("skirt", "dress", "gown")
 LEGS = ("pants", "shorts")
 GARMENT_KINDS = TOPS + LOOSE + LEGS
-VERSION = 6  # bump to invalidate cached garments when the construction changes
+VERSION = 7  # bump to invalidate cached garments when the construction changes
 
 DEFAULTS = {
     "tshirt": dict(ease=0.02, length=0.8, sleeve=0.45, closing=0.04, neck_drop=0.035),
@@ -106,7 +106,7 @@ def _build(kind, body, betas, p, seed):
         if kind in LOOSE:
             keep = ~np.isin(dominant, [names.index(f"{s}_{a}") for s in ("left", "right") for a in ARM_PARTS])
             loft = loft_field(grid, body_v, keep, J["pelvis"][:2], waist_z, (hip_z - 0.12, hip_z + 0.08), p["ease"], p["flare"])
-            zz = grid.points()[:, 2].reshape(grid.shape)
+            zz = grid.axes()[2][None, None, :]
             field = np.minimum(field, loft + 10.0 * np.maximum(zz - waist_z, 0.0))
     V, F = marching_cubes(field, grid, 0.0)
     cuts = []
@@ -173,6 +173,10 @@ def garment_params(kind: str, seed: int = 0, **params) -> dict:
     p.update(params)
     if not 0.003 <= p["resolution"] <= 0.05:
         raise ValueError(f"resolution {p['resolution']} m is outside [0.003, 0.05]")
+    for name in ("ease", "closing"):
+        if not 0.0 <= p.get(name, 0.0) <= SDF_BAND[1] - 0.005:
+            raise ValueError(f"{name} {p[name]} m is outside [0, {SDF_BAND[1] - 0.005:g}]: the body distance grid is exact "
+                             f"only within {SDF_BAND[1]:g} m of the body (drapebench.garments.fields.SDF_BAND)")
     if seed:
         rng = np.random.default_rng(seed)
         p["ease"] *= rng.uniform(0.9, 1.1)

@@ -36,6 +36,8 @@ def test_parameters_and_errors():
         garment_params("poncho")
     with pytest.raises(ValueError, match="unknown parameter"):
         garment_params("skirt", sleeve=1.0)
+    with pytest.raises(ValueError, match=r"ease 0.08 m is outside .*SDF_BAND"):
+        garment_params("tshirt", ease=0.08)
 
 
 def test_export_and_load_round_trip(tmp_path, body_lowres):
