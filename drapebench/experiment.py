@@ -21,6 +21,7 @@ import pandas as pd
 import torch
 from omegaconf import DictConfig, OmegaConf
 
+from drapebench.body.dataset import dataset_hash
 from drapebench.cache import PROJECT_ROOT, atomic_write, cache_dir, content_hash, file_checksum, write_json
 
 log = logging.getLogger("drapebench")
@@ -102,9 +103,11 @@ def _seal(path: Path) -> None:
 
 
 def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict):
-    """Train, or load a checkpoint whose hash (method + training config + garment + body + material) matches."""
-    key = content_hash(OmegaConf.to_container(cfg.method, resolve=True), train_cfg, garment.vertices, garment.faces,
-                       cfg.body.name, OmegaConf.to_container(cfg.material, resolve=True))  # fmt: skip
+    """Train, or load a checkpoint whose hash (method + training config + training data content + garment +
+    body + material) matches."""
+    data_key = dataset_hash(train_cfg["dataset"]) if train_cfg.get("dataset") else None
+    key = content_hash(OmegaConf.to_container(cfg.method, resolve=True), train_cfg, data_key, garment.vertices,
+                       garment.faces, cfg.body.name, OmegaConf.to_container(cfg.material, resolve=True))  # fmt: skip
     path = cache_dir("checkpoints") / f"{cfg.method.name}_{key}.pt"
     if not cfg.force and _valid(path):
         state = torch.load(path, map_location="cpu", weights_only=False)

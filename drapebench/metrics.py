@@ -22,7 +22,6 @@ only look at the body parts near the garment (:func:`culled_body_vertices`).
 
 from __future__ import annotations
 
-import numpy as np
 import pandas as pd
 import torch
 

@@ -102,6 +102,11 @@ def _resolve(name_or_spec) -> tuple[str, DatasetSpec]:
     return name_or_spec, DATASETS[name_or_spec]
 
 
+def dataset_hash(name_or_spec) -> str:
+    """Content hash of a dataset (spec + motion generator version), e.g. for checkpoint keys of methods trained on it."""
+    return _resolve(name_or_spec)[1].hash()
+
+
 def _is_current(path: Path, spec_hash: str) -> bool:
     try:
         with h5py.File(path, "r") as f:

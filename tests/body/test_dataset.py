@@ -16,7 +16,8 @@ def test_rebuild_is_skipped_when_identical_and_forced_on_request(tmp_path):
     seqs = load_dataset(path)
     assert [s.motion for s in seqs].count("kick") == 2 and all(s.n_frames == 15 for s in seqs)
     with h5py.File(path) as f:
-        assert f.attrs["spec_hash"] == TINY.hash() and f.attrs["complete"]
+        assert f.attrs["spec_hash"] == TINY.hash() == ds.dataset_hash(TINY) and f.attrs["complete"]
+    assert ds.dataset_hash("train_small") == DATASETS["train_small"].hash()
 
 
 def test_random_body_shapes_are_clipped():
