@@ -19,9 +19,18 @@ Choices where the paper is silent or differs from the public code (all configura
   min(epoch, kext_ramp_epochs) with d_c = max(eps - d, 0) (paper: ramp over 100 epochs);
 * bending blends flat and template angles per edge by the min-max-normalised rest distance of the
   edge to the body (paper Eq. 12);
-* Adam, lr 1e-3 for the first ``lr_switch_epoch`` (10) epochs, then 1e-4;
-* random body shapes: the first 4 betas U(-2, 2) per window, the rest 0 (the code's SMPL recipe on
-  our PCA betas).
+* no collision post-processing at inference unless ``collision_postprocess`` (SNUG's shipped
+  models push each vertex out along its nearest body vertex's normal by max(eps - d, 0));
+* Adam, lr 1e-3 for the first ``lr_switch_epoch`` (10) epochs, then 1e-4; ``lr_output_factor``
+  (default 1, the code) scales the output layer's rate: Adam moves every weight by about lr per
+  step, so from a zero output layer all V displacements move together by ~lr x sum|h| (about 1 cm
+  per step at lr 1e-4), which short CPU runs never recover from;
+* random body shapes, constant per window: beta_k ~ U(-r_k, r_k) on the first len(``beta_range``)
+  components, the rest 0. The code draws the first 4 SMPL betas from U(-2, 2). Our PCA betas are in
+  standard deviations of Anny's phenotype samples, whose first component scales the whole body
+  (measured on anny_lowres: +-2 spans 1.27-2.35 m of height and 31-127 l of volume), far beyond
+  the adult range SMPL's +-2 covers; so the default keeps +-0.5 on it (1.67-1.94 m) and the code's
+  +-2 on components 1-3 (body weight: beta_1 = -2 is +15 % volume, and proportions).
 """
 
 from __future__ import annotations
@@ -38,8 +47,10 @@ from drapebench.geometry.ops import vertex_normals
 from drapebench.geometry.proximity import culled_body_vertices, nearest_body_vertex
 from drapebench.physics import (
     bending_energy,
+    collision_aware_kext,
     collision_energy,
     gravity_energy,
+    inertia_energy,
     inextensibility_energy,
     stvk_energy,
 )
@@ -63,10 +74,12 @@ METHOD_DEFAULTS = dict(
     hidden=256,
     layers=4,
     zero_init_output=True,
+    collision_postprocess=False,  # SNUG's push-out at inference; off unless a config asks for it
 )
+CHOICES = dict(skinning=("rbf", "nearest", "smoothed"), kext=("collision", "one"), bending=("blend", "flat", "template"))
 TRAIN_DEFAULTS = dict(
-    epochs=1000, batch_size=16, window=3, lr=1e-3, lr_after=1e-4, lr_switch_epoch=10, kext_ramp_epochs=100,
-    hidden_init_std=0.1, random_betas=4, beta_range=2.0, max_minutes=None, checkpoint_every=200, log_every=10,
+    epochs=1000, batch_size=16, window=3, lr=1e-3, lr_after=1e-4, lr_switch_epoch=10, lr_output_factor=1.0, kext_ramp_epochs=100,
+    hidden_init_std=0.1, beta_range=(0.5, 2.0, 2.0, 2.0), max_minutes=None, checkpoint_every=200, log_every=10,
 )
 
 
@@ -99,6 +112,9 @@ class GAPS(DrapingMethod):
         if unknown:
             raise ValueError(f"unknown gaps parameter(s) {sorted(unknown)}; valid: {sorted(METHOD_DEFAULTS)}")
         self.p = {**METHOD_DEFAULTS, **self.cfg}
+        for key, choices in CHOICES.items():
+            if self.p[key] not in choices:
+                raise ValueError(f"gaps parameter {key} must be one of {', '.join(choices)}, not {self.p[key]!r}")
         self.net = None
         self.weights = None
         self.template = None
@@ -115,12 +131,10 @@ class GAPS(DrapingMethod):
         self.nn_rest = nearest_indices(self.template, rest_body)
         if p["skinning"] == "rbf":
             w = rbf_weights(self.template, rest_body, body.weights, p["rbf_k"])
-        elif p["skinning"] in ("nearest", "smoothed"):
+        else:
             w = nearest_weights(self.template, rest_body, body.weights)
             if p["skinning"] == "smoothed":
                 w = smoothed_weights(w, garment.topology, p["smooth_iterations"])
-        else:
-            raise ValueError(f"skinning must be rbf, nearest or smoothed, not {p['skinning']!r}")
         if self.weights is None or self.weights.shape != w.shape:
             self.weights = torch.nn.Parameter(w, requires_grad=p["trainable_weights"])
         dist = (self.template - rest_body[self.nn_rest]).norm(dim=-1)
@@ -161,6 +175,8 @@ class GAPS(DrapingMethod):
         unknown = set(tp) - set(TRAIN_DEFAULTS)
         if unknown:
             raise ValueError(f"unknown gaps training parameter(s) {sorted(unknown)}; valid: {sorted(TRAIN_DEFAULTS)}")
+        if len(tp["beta_range"]) > self.body.n_betas:
+            raise ValueError(f"train.params.beta_range has {len(tp['beta_range'])} entries but the body has {self.body.n_betas} betas")
         seqs = data.train_sequences
         if not seqs:
             raise ValueError("gaps needs training sequences (train.dataset)")
@@ -174,8 +190,9 @@ class GAPS(DrapingMethod):
             allx = torch.cat([torch.cat([p.reshape(len(p), -1), v], -1) for p, v in zip(poses, vels)])
             self.input_mean[self.body.n_betas :] = allx.mean(0)
             self.input_std[self.body.n_betas :] = allx.std(0).clamp_min(1e-3)
-        params = list(self.net.parameters()) + ([self.weights] if self.weights.requires_grad else [])
-        opt = torch.optim.Adam(params, lr=tp["lr"])
+        body_params = list(self.net.gru.parameters()) + ([self.weights] if self.weights.requires_grad else [])
+        groups = [{"params": body_params, "factor": 1.0}, {"params": list(self.net.out.parameters()), "factor": tp["lr_output_factor"]}]
+        opt = torch.optim.Adam(groups, lr=tp["lr"])
         steps_per_epoch = max(1, math.ceil(len(windows) / tp["batch_size"]))
         total_steps = steps_per_epoch * int(tp["epochs"])
         resume = cache_dir("checkpoints") / f"gaps_partial_{content_hash(self.p, tp, seed, self.garment_key, len(windows))}.pt"
@@ -197,7 +214,7 @@ class GAPS(DrapingMethod):
             if k == 0:
                 order = rng.permutation(len(windows))
             for g in opt.param_groups:
-                g["lr"] = tp["lr"] if epoch < tp["lr_switch_epoch"] else tp["lr_after"]
+                g["lr"] = g["factor"] * (tp["lr"] if epoch < tp["lr_switch_epoch"] else tp["lr_after"])
             batch = [windows[j] for j in order[k * tp["batch_size"] : (k + 1) * tp["batch_size"]]]
             losses = self._train_step(batch, poses, vels, trans, seqs, epoch, tp, rng, opt)
             step += 1
@@ -222,7 +239,8 @@ class GAPS(DrapingMethod):
         B, W = len(batch), tp["window"]
         betas = torch.zeros(B, body.n_betas, dtype=body.dtype)
         if not p["single_shape"]:
-            betas[:, : tp["random_betas"]] = torch.as_tensor(rng.uniform(-tp["beta_range"], tp["beta_range"], (B, tp["random_betas"])), dtype=body.dtype)
+            r = np.asarray(tp["beta_range"], dtype=np.float64)
+            betas[:, : len(r)] = torch.as_tensor(rng.uniform(-r, r, (B, len(r))), dtype=body.dtype)
         pose = torch.stack([poses[i][t : t + W] for i, t in batch])
         vel = torch.stack([vels[i][t : t + W] for i, t in batch])
         tr = torch.stack([trans[i][t : t + W] for i, t in batch])
@@ -244,17 +262,13 @@ class GAPS(DrapingMethod):
             "collision": p["collision_weight"] * collision_energy(x, nn.point, nn.normal, p["collision_eps"]).sum() / B,
         }
         xw = x.reshape(B, W, -1, 3)
-        x_hat = (2 * xw[:, -2] - xw[:, -3]).detach()
-        m = topo.vertex_masses(mat)
-        terms["inertia"] = (0.5 * m * ((xw[:, -1] - x_hat) ** 2).sum(-1)).sum() / (mat.dt**2) / B
+        x1, x0 = xw[:, -2].detach(), xw[:, -3].detach()  # stop_gradient(2 x1 - x0), as the code
+        terms["inertia"] = inertia_energy(xw[:, -1], x1, (x1 - x0) / mat.dt, topo, mat).sum() / B
         if p["inextensibility_weight"] > 0:
             if p["kext"] == "collision":
-                d_c = torch.relu(p["collision_eps"] - nn.distance.detach())
-                k_ext = 1.0 + torch.clamp(10.0 * d_c, max=0.03) * min(epoch, tp["kext_ramp_epochs"])
-            elif p["kext"] == "one":
-                k_ext = torch.ones(1, dtype=x.dtype)
+                k_ext = collision_aware_kext(nn.distance, epoch, p["collision_eps"], ramp_epochs=tp["kext_ramp_epochs"])
             else:
-                raise ValueError(f"kext must be 'collision' or 'one', not {p['kext']!r}")
+                k_ext = torch.ones(1, dtype=x.dtype)
             self.last_kext_max = float(k_ext.max())
             terms["inext"] = p["inextensibility_weight"] * inextensibility_energy(x, topo, k_ext).sum() / B
         loss = sum(terms.values())
@@ -287,7 +301,13 @@ class GAPS(DrapingMethod):
             x = lbs(xc, self.weights, transforms)
         t3 = time.perf_counter()
         ms = lambda a, b: (b - a) * 1e3  # noqa: E731
-        return DrapeResult(x.clone(), {"body": ms(t0, t1), "network": ms(t1, t2), "skinning": ms(t2, t3)})
+        timings = {"body": ms(t0, t1), "network": ms(t1, t2), "skinning": ms(t2, t3)}
+        if self.p["collision_postprocess"]:  # SNUG's in-graph fix: push out along the body normal
+            bv, bn = seq.vertices(self.body).to(x.dtype), seq.vertex_normals(self.body).to(x.dtype)
+            nn = nearest_body_vertex(x, bv, bn, self.candidates)
+            x = x + torch.relu(self.p["collision_eps"] - nn.distance)[..., None] * nn.normal
+            timings["postprocess"] = ms(t3, time.perf_counter())
+        return DrapeResult(x.clone(), timings)
 
     def forward_sequence(self, garment, seq, h0=None):
         """Differentiable drape (T, V, 3) and final hidden state, for tests and fine-tuning."""

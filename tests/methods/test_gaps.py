@@ -7,6 +7,7 @@ import torch
 import methods
 from drapebench.body import make_sequence
 from drapebench.garments import make_garment
+from drapebench.geometry.proximity import nearest_body_vertex
 from drapebench.physics import Material
 from drapebench.store import TrainData
 from methods.gaps.skinning import rbf_weights, smoothed_weights
@@ -98,6 +99,24 @@ def test_ablations_change_what_they_claim(scene):
     assert not torch.equal(ncs.weights.detach(), nn_w) and torch.allclose(ncs.weights.sum(1), torch.ones(g.n_vertices), atol=1e-5)
     with pytest.raises(ValueError, match="unknown gaps parameter"):
         methods.get("gaps")({"kextt": "one"})
+    with pytest.raises(ValueError, match="bending must be one of"):
+        methods.get("gaps")({"bending": "flatt"})
+
+
+def test_collision_postprocess_only_when_asked(scene):
+    body, g, seqs = scene
+    m, _ = _fit(scene)
+    seq = seqs[0]
+    raw = m.drape(g, seq)
+    m.p["collision_postprocess"] = True
+    fixed = m.drape(g, seq)
+    assert "postprocess" in fixed.timings_ms and "postprocess" not in raw.timings_ms
+    bv, bn = seq.vertices(body), seq.vertex_normals(body)
+    d_raw = nearest_body_vertex(raw.vertices, bv, bn, m.candidates).distance
+    d_fix = nearest_body_vertex(fixed.vertices, bv, bn, m.candidates).distance
+    moved = (fixed.vertices - raw.vertices).norm(dim=-1) > 0
+    assert moved.any() and not moved[d_raw > 2e-3 + 1e-6].any()  # only vertices within eps of the body move
+    assert (d_fix < 0).sum() <= (d_raw < 0).sum()
 
 
 def test_checkpoint_round_trip(scene):
