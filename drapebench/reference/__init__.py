@@ -2,11 +2,11 @@
 
 ``simulate(garment, seq, body, material, solver="vbd")`` -> (T, V, 3); the material mapping and its
 approximations are documented in :mod:`drapebench.reference.materials`, the schedule (start, settling,
-collider, pins) in :mod:`drapebench.reference.simulate`. Newton/warp are imported only when a
+collider, pins) in :mod:`drapebench.reference.simulator`. Newton/warp are imported only when a
 simulation actually runs (not for cache hits).
 """
 
 from drapebench.reference.settings import SOLVERS, SimSettings
-from drapebench.reference.simulate import SimulationDiverged, SimulationRecord, simulate, simulate_record
+from drapebench.reference.simulator import SimulationDiverged, SimulationRecord, simulate, simulate_record
 
 __all__ = ["SOLVERS", "SimSettings", "SimulationDiverged", "SimulationRecord", "simulate", "simulate_record"]

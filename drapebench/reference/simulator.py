@@ -165,14 +165,15 @@ def _pin_targets(start: torch.Tensor, pins: torch.Tensor, idx: torch.Tensor, bod
 
 
 def _run(garment, seq, body, material: Material, settings: SimSettings, show_progress: bool):
-    from drapebench.reference.scene import ClothScene, resolve_device
-
     t_setup = time.perf_counter()
-    device = resolve_device(settings.device)
     S, T = int(settings.settle_frames), seq.n_frames
     start, idx = _start_state(garment, seq, body)
     verts, transforms = _timeline(seq, body, S)
     _check_start(garment, start, torch.as_tensor(verts[0]), body)
+
+    from drapebench.reference.scene import ClothScene, resolve_device  # imports newton/warp
+
+    device = resolve_device(settings.device)
     pins = garment.pins.long() if settings.pins else torch.zeros(0, dtype=torch.long)
     pin_q = _pin_targets(start, pins, idx, body, transforms)
     rest = garment.vertices.double().numpy()

@@ -1,0 +1,95 @@
+"""Reference cache, start-state checks and the pbs method, with the Newton run replaced by a stub (fast)."""
+
+import dataclasses
+import time
+
+import numpy as np
+import pytest
+import torch
+
+import drapebench.reference.simulator as sim
+from drapebench.body import make_sequence
+from drapebench.garments import make_garment
+from drapebench.physics import Material
+from drapebench.reference import SimulationDiverged, simulate, simulate_record
+
+
+@pytest.fixture(scope="module")
+def scene(body_lowres):
+    return make_garment("skirt", body_lowres, resolution=0.03), make_sequence("walk", 6, transition=2, seed=3)
+
+
+@pytest.fixture
+def stub(monkeypatch, tmp_path):
+    """Replace the Newton run by a deterministic fake that counts calls; cache in tmp_path."""
+    monkeypatch.setenv("DRAPEBENCH_DATA", str(tmp_path))
+    calls = []
+
+    def fake_run(garment, seq, body, material, settings, show_progress):
+        calls.append(settings)
+        if settings.max_speed < 1.0:
+            raise SimulationDiverged(garment.name, seq.name, 3, seq.n_frames, "test blow-up", settings)
+        x = garment.vertices.numpy()[None].repeat(seq.n_frames, 0) + 1e-3 * np.arange(seq.n_frames)[:, None, None]
+        return x.astype(np.float32), {"setup": 1.0, "settle": 2.0, "sequence": 3.0}, {"max_speed": 0.1}
+
+    monkeypatch.setattr(sim, "_run", fake_run)
+    return calls
+
+
+def test_second_call_loads_from_cache_with_the_original_timings(scene, body_lowres, stub, tmp_path):
+    g, seq = scene
+    a = simulate_record(g, seq, body_lowres, Material(), progress=False)
+    t = time.perf_counter()
+    b = simulate_record(g, seq, body_lowres, Material(), progress=False)
+    assert time.perf_counter() - t < 1.0
+    assert len(stub) == 1 and not a.from_cache and b.from_cache
+    assert b.sim_s == pytest.approx(6.0) and b.timings_s == a.timings_s
+    assert torch.equal(a.vertices, b.vertices) and b.vertices.dtype == torch.float32
+    assert simulate(g, seq, body_lowres, progress=False, dtype=torch.float64).dtype == torch.float64
+    files = list((tmp_path / "cache" / "reference").glob("*.npz"))
+    assert len(files) == 1 and files[0].name.startswith("skirt_walk_s3_vbd_")
+
+
+def test_cache_key_follows_material_solver_and_settings(scene, body_lowres, stub):
+    g, seq = scene
+    simulate(g, seq, body_lowres, Material(), progress=False)
+    simulate(g, seq, body_lowres, Material().with_(friction=0.2), progress=False)
+    simulate(g, seq, body_lowres, Material(), solver="style3d", progress=False)
+    simulate(g, seq, body_lowres, Material(), substeps=3, progress=False)
+    simulate(g, seq, body_lowres, Material(), progress=False, cache=False)
+    assert len(stub) == 5
+    simulate(g, seq, body_lowres, Material(), substeps=3, progress=False)
+    assert len(stub) == 5
+
+
+def test_a_diverged_run_raises_and_leaves_no_cache_entry(scene, body_lowres, stub, tmp_path):
+    g, seq = scene
+    with pytest.raises(SimulationDiverged, match=r"'skirt'.*frame 3 of 8.*substeps=") as err:
+        simulate(g, seq, body_lowres, progress=False, max_speed=0.5)
+    assert err.value.frame == 3 and err.value.garment == "skirt"
+    assert not list((tmp_path / "cache" / "reference").glob("*"))
+
+
+def test_garment_inside_the_body_is_rejected(scene, body_lowres, monkeypatch, tmp_path):
+    monkeypatch.setenv("DRAPEBENCH_DATA", str(tmp_path))
+    g, seq = scene
+    centre = g.vertices.mean(0)
+    shrunk = centre + (g.vertices - centre) * torch.tensor([0.5, 0.5, 1.0])
+    with pytest.raises(ValueError, match=r"garment 'skirt' starts inside the body: \d+ of"):
+        simulate(dataclasses.replace(g, vertices=shrunk), seq, body_lowres, progress=False)
+    assert not list((tmp_path / "cache" / "reference").glob("*"))
+
+
+def test_pbs_method_reports_the_original_simulation_time(scene, body_lowres, stub):
+    import methods
+
+    g, seq = scene
+    m = methods.get("pbs")({"solver": "vbd"})
+    assert m.generic and not m.needs_reference
+    m.bind(body_lowres, Material())
+    first, second = m.drape(g, seq), m.drape(g, seq)
+    assert first.vertices.shape == (seq.n_frames, g.n_vertices, 3)
+    assert first.timings_ms == {"simulate": pytest.approx(6000.0)}
+    assert second.timings_ms["simulate"] == pytest.approx(6000.0) and "cache_load" in second.timings_ms
+    with pytest.raises(ValueError, match="unknown reference setting"):
+        methods.get("pbs")({"solver": "vbd", "substep": 2})
