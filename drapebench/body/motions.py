@@ -12,7 +12,8 @@ acceleration stay continuous.
 Ground contact: motions without a flight phase are "grounded": the root height follows the soles of
 a canonical body (the shipped ``anny_lowres`` at mean shape) through a smooth soft minimum over its
 skinned sole vertices, so the lowest sole point stays at the rest floor level.
-``run`` and ``jump`` use their designed vertical trajectories (flight); ``stress`` floats (its flailing legs
+``run`` and ``jump`` use their designed vertical trajectories (a jump's flight is ballistic: the body
+falls at g, so cloth can follow it); ``stress`` floats (its flailing legs
 would make the support switch too fast).
 
 The seed varies amplitude (+-15 %), cadence (+-10 %) and phase; ``amplitude``, ``cadence`` (Hz),
@@ -31,10 +32,11 @@ from drapebench.body.lbs import lbs
 from drapebench.body.limits import JOINT_LIMITS
 
 MOTIONS = ("walk", "run", "jump", "arm_raise", "squat", "twist", "kick", "dance", "static", "stress")
-MOTION_VERSION = 2  # bump when generated poses change (part of dataset content hashes)
+MOTION_VERSION = 3  # bump when generated poses change (part of dataset content hashes)
 GROUND_SOFTNESS = 0.01  # metres; soft-min temperature of the foot-contact height
 J = {name: i for i, name in enumerate(JOINT_NAMES)}
 X, Y, Z = 0, 1, 2
+GRAVITY = 9.81  # m/s^2, for the ballistic flight of jumps
 THIGH, SHIN = 0.45, 0.45  # metres; approximate leg segment lengths for pelvis-height compensation
 
 
@@ -103,20 +105,33 @@ def _walk_like(m, t, rng, a, f, speed, run: bool):
         m.z[:] = 0.04 * a * np.cos(2 * phi)
 
 
+def ballistic_height(tau: np.ndarray, apex: float, smoothing: float = 0.04, g: float = GRAVITY) -> np.ndarray:
+    """Height (m) of a jump's flight at time ``tau`` (s) from its apex: the free-fall parabola
+    max(apex - g tau^2 / 2, 0), convolved with a Gaussian of ``smoothing`` seconds so take-off and
+    landing (the leg push) are smooth. Inside the flight the body falls at exactly g, as cloth does."""
+    half = np.sqrt(2.0 * apex / g)
+    s = np.linspace(-half, half, 801)
+    w = np.exp(-0.5 * ((np.asarray(tau)[:, None] - s[None]) / smoothing) ** 2)
+    parabola = apex - 0.5 * g * s**2
+    return np.trapezoid(w * parabola, s, axis=1) / (np.sqrt(2 * np.pi) * smoothing)
+
+
 def _jump(m, t, rng, a, f, height):
     u = (f * t + rng.uniform(0, 0.2)) % 1.0
-    crouch = _bump(u, 0.3, 0.09) + 0.6 * _bump(u, 0.85, 0.06)
-    flight = _bump(u, 0.57, 0.08)
-    hip, knee = 1.0 * a * crouch, 1.7 * a * crouch
+    # countermovement and landing crouches wide enough that the pelvis never drops much faster than g
+    crouch = _bump(u, 0.2, 0.18) + 0.6 * _bump(u, 0.9, 0.12)
+    flight = _bump(u, 0.57, 0.08)  # toes point through the flight
+    tau = ((u - 0.57 + 0.5) % 1.0 - 0.5) / f  # seconds from the flight's apex
+    hip, knee = 0.75 * a * crouch, 1.275 * a * crouch
     m.both("hip", X, -hip)
     m.both("knee", X, knee)
     m.both("ankle", X, -0.45 * a * crouch + 0.5 * flight)
     m.set("spine1", X, 0.3 * a * crouch)
     swing = _bump(u, 0.55, 0.16)  # arms swing up through take-off and flight, slower than the legs
-    m.both("shoulder", X, 0.5 * _bump(u, 0.3, 0.14) - 1.3 * a * swing)
+    m.both("shoulder", X, 0.5 * _bump(u, 0.2, 0.14) - 1.3 * a * swing)
     m.both("shoulder", Y, 0.3, mirror=True)
     m.both("elbow", X, -0.3)
-    m.z[:] = -_leg_drop(hip, knee) + height * a * flight
+    m.z[:] = -_leg_drop(hip, knee) + ballistic_height(tau, height * a)
 
 
 def _arm_raise(m, t, rng, a, f, mode):

@@ -4,7 +4,7 @@ import torch
 
 from drapebench.body import MOTIONS, BodySequence, make_sequence
 from drapebench.body.limits import JOINT_LIMITS, limit_violation
-from drapebench.body.motions import UNGROUNDED_MOTIONS, ground_offset, motion_defaults, soft_limit, split_motions
+from drapebench.body.motions import GRAVITY, UNGROUNDED_MOTIONS, ballistic_height, ground_offset, motion_defaults, soft_limit, split_motions
 
 # Stated physical bounds on joint accelerations (m/s^2, finite second differences of joint positions):
 # everyday motions stay under 5 g, athletic ones (a foot in a kick, hands in a jump) under 20 g, and
@@ -28,6 +28,21 @@ def test_motion_respects_limits_and_acceleration(motion, body_lowres):
         assert torch.isfinite(acc).all()
         bound = ACC_BOUND.get(motion, EVERYDAY_ACC_BOUND)
         assert acc.max() < bound, f"{motion} seed {seed}: {acc.max():.1f} m/s^2 > {bound}"
+
+
+def test_jump_flight_is_ballistic():
+    """Cloth under gravity can follow the body only if the pelvis never drops faster than free fall:
+    the flight falls at exactly g and the crouches keep the root's downward acceleration under 2 g."""
+    tau = np.linspace(-0.6, 0.6, 1201)
+    z = ballistic_height(tau, 0.3)
+    acc = np.gradient(np.gradient(z, tau), tau)
+    assert np.allclose(acc[np.abs(tau) < 0.1], -GRAVITY, atol=0.05) and abs(z.max() - 0.3) < 0.01
+    assert np.abs(z[np.abs(tau) > 0.5]).max() < 1e-6 and acc.max() < 2.5 * GRAVITY
+    for seed in range(5):
+        seq = make_sequence("jump", n_frames=120, seed=seed)
+        root_z = seq.trans[:, 2].double().numpy()
+        assert root_z.max() > 0.15  # it does leave the ground
+        assert (np.diff(root_z, 2) * seq.fps**2).min() > -2.0 * GRAVITY
 
 
 @pytest.mark.parametrize("motion", MOTIONS)

@@ -23,12 +23,15 @@ def scene(body, kind, motion, n_frames=30, transition=10):
 
 
 def stays_on_body(garment, seq, body, x):
-    """Garment still worn: <5% of vertices farther than 10 cm from the body surface in every frame, and its
-    centroid's height relative to the pelvis moves by < 5 cm."""
+    """How far the garment came off: the largest fraction of vertices (over frames) that are more than
+    10 cm farther from the body surface than they were on the template (a flared hem is far from the
+    legs at rest already), and the largest drop (m) of the garment's mean height relative to the
+    pelvis below its first-frame value (falling off is downward; a hem flipping up in a jump is not)."""
     sd = signed_distance(x, seq.vertices(body), body.faces)
-    far = (sd.abs() > 0.10).float().mean(1)
+    sd_rest = signed_distance(garment.vertices[None], body.shaped(garment.betas[None, : body.n_betas])[0], body.faces)
+    far = ((sd - sd_rest) > 0.10).float().mean(1)
     rel_z = x[..., 2].mean(1) - seq.joints(body)[:, 0, 2]
-    return float(far.max()), float((rel_z - rel_z[0]).abs().max())
+    return float(far.max()), float((rel_z[0] - rel_z).max())
 
 
 @pytest.mark.parametrize("solver", ["vbd", "style3d"])
