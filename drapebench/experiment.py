@@ -25,7 +25,7 @@ from drapebench.body.dataset import dataset_hash
 from drapebench.cache import PROJECT_ROOT, atomic_write, cache_dir, content_hash, file_checksum, write_json
 
 log = logging.getLogger("drapebench")
-SUMMARY_COLUMNS = ["method", "garment", "motion", "body", "n_vertices", "n_frames", "eps_e", "eps_a", "eps_c", "eps_c_std",
+SUMMARY_COLUMNS = ["method", "garment", "motion", "body", "shape", "n_vertices", "n_frames", "eps_e", "eps_a", "eps_c", "eps_c_std",
                    "edge_mm", "smoothness", "penetration_mm", "jitter", "vertex_error_mm", "ms_per_frame", "train_s"]  # fmt: skip
 
 
@@ -53,6 +53,13 @@ def environment(device: str) -> dict:
         "python": platform.python_version(), "machine": platform.machine(), "processor": platform.processor(),
         "node": platform.node(), "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None,
     }  # fmt: skip
+
+
+def shape_label(betas) -> str:
+    """Readable body-shape label of a test sequence's betas: "mean", or "b1=-2" for the non-zero components."""
+    if betas is None or not any(float(b) for b in betas):
+        return "mean"
+    return ",".join(f"b{i}={float(b):g}" for i, b in enumerate(betas) if float(b))
 
 
 def job_threads(cfg: DictConfig) -> int:
@@ -226,7 +233,7 @@ def run(cfg: DictConfig, out_dir: str | Path | None = None) -> dict:
     stages["eval_s"] = time.perf_counter() - t
     record = {
         "method": cfg.method.name, "garment": cfg.garment.kind, "motion": m.name, "body": cfg.body.name,
-        "n_vertices": garment.n_vertices, "n_frames": seq.n_frames, **summary,
+        "shape": shape_label(m.betas), "n_vertices": garment.n_vertices, "n_frames": seq.n_frames, **summary,
         "ms_per_frame": drape_s * 1e3 / seq.n_frames, "train_s": train_s,
         **{f"ms_{k}": v / seq.n_frames for k, v in result.timings_ms.items()},
         "seed": int(cfg.seed), "experiment": cfg.experiment_name, "checkpoint": ckpt, "commit": git_commit(),

@@ -20,14 +20,14 @@ import pandas as pd
 
 from drapebench.cache import atomic_write
 
-# table name -> (metrics shown, metric drawn against runtime)
+# table name -> (metrics shown, metric drawn against runtime, what the column groups are)
 TABLES = {
-    "baseline": (["eps_e", "eps_a", "eps_c"], "eps_c"),
-    "gaps_table1": (["eps_e", "eps_a", "eps_c"], "eps_c"),
-    "gaps_table2": (["eps_c"], "eps_c"),
-    "gaps_table3": (["eps_e", "eps_a"], "eps_e"),
-    "runtime": (["train_s", "ms_per_frame"], "eps_c"),
-    "physics": (["eps_e", "eps_c", "penetration_mm", "jitter", "smoothness"], "eps_c"),
+    "baseline": (["eps_e", "eps_a", "eps_c"], "eps_c", "garment"),
+    "gaps_table1": (["eps_e", "eps_a", "eps_c"], "eps_c", "garment"),
+    "gaps_table2": (["eps_c"], "eps_c", "garment"),
+    "gaps_table3": (["eps_e", "eps_a"], "eps_e", "shape"),
+    "runtime": (["train_s", "ms_per_frame"], "eps_c", "garment"),
+    "physics": (["eps_e", "eps_c", "penetration_mm", "jitter", "smoothness"], "eps_c", "garment"),
 }
 METRIC_LABELS = {"eps_e": "ε_e (%)", "eps_a": "ε_a (%)", "eps_c": "ε_c (%)", "train_s": "train (s)",
                  "ms_per_frame": "ms/frame", "penetration_mm": "pen. (mm)", "jitter": "jitter (mm)",
@@ -49,10 +49,13 @@ def collect(dirs) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def table(df: pd.DataFrame, metrics: list[str], decimals: int = 3) -> pd.DataFrame:
-    """Methods x (garment, metric) table of formatted cells; repeated runs are averaged."""
+def table(df: pd.DataFrame, metrics: list[str], decimals: int = 3, group: str = "garment") -> pd.DataFrame:
+    """Methods x (``group`` value, metric) table of formatted cells (groups: garments, or body shapes with
+    ``group="shape"``); repeated runs are averaged."""
+    if group not in df:
+        raise KeyError(f"the runs have no {group!r} column (written by drapebench.experiment since the table needs it); rerun them")
     cells = {}
-    for (method, garment), g in df.groupby(["method", "garment"], sort=False):
+    for (method, garment), g in df.groupby(["method", group], sort=False):
         for m in metrics:
             if m not in g:
                 continue
@@ -63,8 +66,8 @@ def table(df: pd.DataFrame, metrics: list[str], decimals: int = 3) -> pd.DataFra
             else:
                 cells[(method, garment, m)] = f"{mean:.{decimals}f}"
     methods = list(dict.fromkeys(df["method"]))
-    garments = list(dict.fromkeys(df["garment"]))
-    cols = pd.MultiIndex.from_tuples([(g, METRIC_LABELS.get(m, m)) for g in garments for m in metrics], names=["garment", "metric"])
+    garments = list(dict.fromkeys(df[group]))
+    cols = pd.MultiIndex.from_tuples([(g, METRIC_LABELS.get(m, m)) for g in garments for m in metrics], names=[group, "metric"])
     out = pd.DataFrame(index=pd.Index(methods, name="method"), columns=cols, dtype=object)
     for (method, garment, m), v in cells.items():
         out.loc[method, (garment, METRIC_LABELS.get(m, m))] = v
@@ -112,9 +115,9 @@ def write_table(dirs, name: str, out: Path, command: str | None = None) -> list[
     """Write ``out``.md/.tex/.csv and ``out``_runtime.png for table ``name``; returns the paths."""
     if name not in TABLES:
         raise KeyError(f"unknown table {name!r}; tables: {', '.join(TABLES)}")
-    metrics, error = TABLES[name]
+    metrics, error, group = TABLES[name]
     df = collect(dirs)
-    t = table(df, metrics)
+    t = table(df, metrics, group=group)
     command = command or "python -m drapebench.report " + " ".join(sys.argv[1:])
     prov = provenance(df, command)
     out = Path(out)

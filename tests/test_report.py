@@ -39,3 +39,25 @@ def test_summary_and_missing_runs(tmp_path):
     assert len(rows) == 4 and set(rows["method"]) == {"lbs", "pbs"}
     with pytest.raises(FileNotFoundError, match="no metrics.json"):
         collect([tmp_path / "empty"])
+
+
+def test_shape_columns_for_the_body_shape_table(tmp_path):
+    import json
+    import shutil
+
+    shutil.copytree(FIXTURES, tmp_path / "runs")
+    for i, f in enumerate(sorted((tmp_path / "runs").rglob("metrics.json"))):
+        rec = json.loads(f.read_text())
+        rec["shape"] = "mean" if i % 2 == 0 else "b1=-2"
+        f.write_text(json.dumps(rec))
+    t = table(collect([tmp_path / "runs"]), ["eps_e"], group="shape")
+    assert list(t.columns.get_level_values(0).unique()) == ["mean", "b1=-2"] and t.columns.names == ["shape", "metric"]
+    with pytest.raises(KeyError, match="no 'shape' column"):
+        table(collect([FIXTURES]), ["eps_e"], group="shape")
+
+
+def test_shape_label():
+    from drapebench.experiment import shape_label
+
+    assert shape_label(None) == "mean" == shape_label([0.0, 0.0])
+    assert shape_label([0.0, -2.0, 0.5]) == "b1=-2,b2=0.5"

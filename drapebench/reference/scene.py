@@ -21,6 +21,7 @@ import newton  # noqa: E402
 import warp as wp  # noqa: E402
 
 wp.config.quiet = True
+wp.config.log_level = wp.LOG_WARNING  # no per-module load/compile timing lines in run logs
 if wp.config.kernel_cache_dir is None:  # warp imported elsewhere first: still keep its cache in the project
     wp.config.kernel_cache_dir = os.environ["WARP_CACHE_PATH"]
 
