@@ -46,6 +46,19 @@ def test_training_is_deterministic_for_a_seed(scene):
     assert [h["loss"] for h in a.history] == [h["loss"] for h in b.history]
 
 
+def test_weight_averaging_and_lr_decay(scene):
+    plain, a = _fit(scene, steps_epochs=2, seed=1)
+    avg, b = _fit(scene, steps_epochs=2, seed=1, ema_decay=0.9)
+    assert [h["loss"] for h in a.history] == [h["loss"] for h in b.history]  # averaging does not change training
+    assert not torch.equal(plain.net.out.weight, avg.net.out.weight)
+    assert (avg.net.out.weight.abs().sum() < plain.net.out.weight.abs().sum())  # an average of a walk from zero is smaller
+    _, c = _fit(scene, steps_epochs=4, seed=1, lr_decay_fraction=0.5, lr_switch_epoch=100)
+    lrs = [h["lr"] for h in c.history]
+    n = len(lrs)
+    assert all(lr == pytest.approx(1e-3) for lr in lrs[: n // 2]) and lrs[-1] < lrs[n // 2] * 0.2
+    assert all(x >= y for x, y in zip(lrs, lrs[1:]))
+
+
 def test_gradients_finite_through_300_frames(scene):
     body, g, _ = scene
     m, _ = _fit(scene)
