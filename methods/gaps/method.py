@@ -41,6 +41,7 @@ Choices where the paper is silent or differs from the public code (all configura
 
 from __future__ import annotations
 
+import logging
 import math
 import time
 
@@ -82,6 +83,8 @@ METHOD_DEFAULTS = dict(
     zero_init_output=True,
     collision_postprocess=False,  # SNUG's push-out at inference; off unless a config asks for it
 )
+log = logging.getLogger("drapebench")
+
 CHOICES = dict(skinning=("rbf", "nearest", "smoothed"), kext=("collision", "one"), bending=("blend", "flat", "template"))
 TRAIN_DEFAULTS = dict(
     epochs=1000, batch_size=16, window=3, lr=1e-3, lr_after=1e-4, lr_switch_epoch=10, lr_output_factor=1.0, kext_ramp_epochs=100,
@@ -245,7 +248,9 @@ class GAPS(DrapingMethod):
                 with atomic_write(resume, mode=None) as tmp:
                     torch.save({"method": self.state_dict(), "opt": opt.state_dict(), "step": step, "history": history,
                                 "train_s": t_prev + elapsed, "rng": rng, "torch_rng": torch.get_rng_state(), "ema": ema}, tmp)  # fmt: skip
-            if deadline is not None and elapsed > deadline:
+            if deadline is not None and elapsed > deadline and step < total_steps:
+                log.warning("gaps: max_minutes reached at step %d of %d; a time-cut run depends on machine speed "
+                            "(raise max_minutes or lower epochs for a deterministic result)", step, total_steps)
                 break
         bar.close()
         if ema is not None:  # the averaged weights are the model
