@@ -22,7 +22,8 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=6, help="timed sequence frames per scene")
     ap.add_argument("--body", default="anny")
     args = ap.parse_args()
-    import warp as wp  # after drapebench.reference set the kernel cache; only to ask for CUDA
+    from drapebench.reference import scene  # noqa: F401  (puts warp's kernel cache in data/cache/warp before warp starts)
+    import warp as wp  # only to ask for CUDA
 
     devices = ["cpu"] + (["cuda:0"] if wp.is_cuda_available() else [])
     body = load_body(args.body)
