@@ -182,3 +182,12 @@ def test_submitit_local_launcher_runs_a_sweep(tmp_path):
                tmp_path, timeout=600)  # fmt: skip
     assert p.returncode == 0, p.stderr[-3000:]
     assert len((sweep / "summary.csv").read_text().strip().splitlines()) == 3
+
+
+def test_ms_per_frame_of_a_cached_drape_is_the_original_computation_not_the_load():
+    from drapebench.experiment import drape_ms_per_frame
+
+    assert drape_ms_per_frame({"simulate": 2000.0, "cache_load": 5.0}, drape_s=0.005, n_frames=10) == pytest.approx(200.0)
+    assert drape_ms_per_frame({"rollout": 30.0}, drape_s=0.04, n_frames=10) == pytest.approx(4.0)
+    with pytest.raises(ValueError, match="n_frames"):
+        drape_ms_per_frame({}, drape_s=0.0, n_frames=0)
