@@ -23,6 +23,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from drapebench.body.dataset import dataset_hash
 from drapebench.cache import PROJECT_ROOT, atomic_write, cache_dir, content_hash, file_checksum, write_json
+from drapebench.errors import DrapeFailed
 
 log = logging.getLogger("drapebench")
 SUMMARY_COLUMNS = ["method", "garment", "motion", "body", "shape", "n_vertices", "n_frames", "eps_e", "eps_a", "eps_c", "eps_c_std",
@@ -187,7 +188,30 @@ def _reference(cfg: DictConfig, garment, seq, body, material):
 
 def run(cfg: DictConfig, out_dir: str | Path | None = None) -> dict:
     """Run one experiment described by ``cfg``; writes the run's files into ``out_dir`` (default: the
-    Hydra run directory) and returns the flat metrics record."""
+    Hydra run directory) and returns the flat metrics record. When the method fails on the scene
+    (:class:`drapebench.errors.DrapeFailed`) and ``cfg.on_failure`` is "record", writes ``failed.json``
+    instead of ``metrics.json`` and returns that record (``status`` "failed")."""
+    if out_dir is None:
+        from hydra.core.hydra_config import HydraConfig
+
+        out_dir = HydraConfig.get().runtime.output_dir
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "failed.json").unlink(missing_ok=True)
+    try:
+        return _run(cfg, out)
+    except DrapeFailed as err:
+        if getattr(cfg.on_failure, "name", cfg.on_failure) != "record":
+            raise
+        record = {"status": "failed", "method": cfg.method.name, "garment": cfg.garment.kind, "motion": cfg.motion.name,
+                  "body": cfg.body.name, "shape": shape_label(cfg.motion.betas), "error": type(err).__name__,
+                  "message": str(err), "experiment": cfg.experiment_name, "commit": git_commit()}  # fmt: skip
+        write_json(out / "failed.json", record)
+        log.error("run failed (recorded in %s, on_failure=record): %s", out / "failed.json", err)
+        return record
+
+
+def _run(cfg: DictConfig, out: Path) -> dict:
     from drapebench.body import load_body, make_sequence
     from drapebench.body.dataset import build_dataset, load_dataset
     from drapebench.garments import make_garment
@@ -198,12 +222,6 @@ def run(cfg: DictConfig, out_dir: str | Path | None = None) -> dict:
     viz = getattr(cfg.viz, "name", cfg.viz)  # a VizMode member once validated by the schema
     if viz not in ("rerun", "none"):
         raise ValueError(f"viz must be 'rerun' or 'none', not {viz!r}")
-    if out_dir is None:
-        from hydra.core.hydra_config import HydraConfig
-
-        out_dir = HydraConfig.get().runtime.output_dir
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     (out / "metrics.json").unlink(missing_ok=True)  # a rerun into the same folder is incomplete until it ends
     torch.set_num_threads(job_threads(cfg))
     torch.manual_seed(int(cfg.seed))

@@ -49,6 +49,31 @@ def collect(dirs) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def collect_failures(dirs) -> pd.DataFrame:
+    """One row per ``failed.json`` below ``dirs`` (runs recorded with ``on_failure=record``), with its ``run_dir``;
+    an empty frame when none failed."""
+    rows = []
+    for d in map(Path, dirs):
+        files = [d / "failed.json"] if (d / "failed.json").exists() else sorted(d.rglob("failed.json"))
+        rows += [{**json.loads(f.read_text()), "run_dir": str(f.parent)} for f in files]
+    return pd.DataFrame(rows)
+
+
+def mark_failures(t: pd.DataFrame, failed: pd.DataFrame, group: str = "garment") -> pd.DataFrame:
+    """``t`` (from :func:`table`) with every cell of a failed (method, group value) set to "failed"
+    (rows and column groups added where no run of them finished)."""
+    if failed.empty:
+        return t
+    metrics = list(dict.fromkeys(m for _, m in t.columns)) if len(t.columns) else []
+    groups = list(dict.fromkeys([g for g, _ in t.columns] + list(failed[group])))
+    cols = pd.MultiIndex.from_tuples([(g, m) for g in groups for m in metrics], names=t.columns.names)
+    rows = list(dict.fromkeys(list(t.index) + list(failed["method"])))
+    out = t.astype(object).reindex(index=pd.Index(rows, name=t.index.name), columns=cols).astype(object).fillna("–")
+    for _, f in failed.iterrows():
+        out.loc[f["method"], [(f[group], m) for m in metrics]] = "failed"
+    return out
+
+
 def table(df: pd.DataFrame, metrics: list[str], decimals: int = 3, group: str = "garment") -> pd.DataFrame:
     """Methods x (``group`` value, metric) table of formatted cells (groups: garments, or body shapes with
     ``group="shape"``); repeated runs are averaged."""
@@ -116,14 +141,15 @@ def write_table(dirs, name: str, out: Path, command: str | None = None) -> list[
     if name not in TABLES:
         raise KeyError(f"unknown table {name!r}; tables: {', '.join(TABLES)}")
     metrics, error, group = TABLES[name]
-    df = collect(dirs)
-    t = table(df, metrics, group=group)
+    df, failed = collect(dirs), collect_failures(dirs)
+    t = mark_failures(table(df, metrics, group=group), failed, group=group)
     command = command or "python -m drapebench.report " + " ".join(sys.argv[1:])
-    prov = provenance(df, command)
+    prov = provenance(pd.concat([df, failed]), command)
+    notes = "".join(f"\n- {r.method} on {r[group]} failed: {r.message}" for _, r in failed.iterrows()) if len(failed) else ""
     out = Path(out)
     paths = [out.with_suffix(".md"), out.with_suffix(".tex"), out.with_suffix(".csv"), out.parent / f"{out.name}_runtime.png"]
     with atomic_write(paths[0], "w") as f:
-        f.write(f"# {name}\n\n{_markdown(t)}\n\n{prov}\n")
+        f.write(f"# {name}\n\n{_markdown(t)}\n{notes}\n\n{prov}\n")
     with atomic_write(paths[1], "w") as f:
         f.write(f"% {prov}\n" + t.style.to_latex(hrules=True, multicol_align="c"))
     with atomic_write(paths[2], "w") as f:
@@ -134,11 +160,19 @@ def write_table(dirs, name: str, out: Path, command: str | None = None) -> list[
 
 
 def write_summary(sweep_dir: Path) -> Path:
-    """``summary.md`` and ``summary.csv`` at a sweep root: one row per finished job."""
+    """``summary.md`` and ``summary.csv`` at a sweep root: one row per finished job, and per failed one
+    (``status`` "failed" with its message) when any was recorded with ``on_failure=record``."""
     from drapebench.experiment import SUMMARY_COLUMNS
 
-    df = collect([sweep_dir])
-    cols = [c for c in SUMMARY_COLUMNS if c in df] + ["run_dir"]
+    failed = collect_failures([sweep_dir])
+    try:
+        df = collect([sweep_dir])
+    except FileNotFoundError:
+        if failed.empty:
+            raise
+        df = pd.DataFrame(columns=["method", "garment", "motion"])
+    df = pd.concat([df.assign(status="ok"), failed]) if len(failed) else df
+    cols = [c for c in ["status", *SUMMARY_COLUMNS, "message"] if c in df] + ["run_dir"]
     df = df[cols]
     with atomic_write(Path(sweep_dir) / "summary.csv", "w") as f:
         df.to_csv(f, index=False)

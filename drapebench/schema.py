@@ -91,6 +91,11 @@ class VizMode(Enum):
     none = "none"  # no recording (costs nothing)
 
 
+class FailureMode(Enum):
+    stop = "stop"  # a diverged simulation or training raises (the sweep stops)
+    record = "record"  # it is written to the run's failed.json and the sweep goes on
+
+
 @dataclass
 class Config:
     method: MethodConf = field(default_factory=MethodConf)
@@ -103,6 +108,7 @@ class Config:
     eval: EvalConf = field(default_factory=EvalConf)
     viz: VizMode = VizMode.rerun
     force: bool = False  # rebuild cached data, checkpoints and references
+    on_failure: FailureMode = FailureMode.stop  # drapebench.errors.DrapeFailed: stop, or record and go on
     seed: int = 0
     threads: Optional[int] = None  # torch threads per job; None: the job's share of the CPU cores
     device: str = "cpu"

@@ -82,6 +82,8 @@ def test_every_experiment_config_composes():
     for exp in sorted((ROOT / "conf" / "experiment").glob("*.yaml")):
         cfg = _compose([f"experiment={exp.stem}"])
         assert cfg.experiment_name == exp.stem
+        assert cfg.on_failure.name == ("stop" if exp.stem == "smoke" else "record")  # a table sweep records failures
+    assert _compose([]).on_failure.name == "stop"
 
 
 def _fresh(extra=()):
@@ -191,3 +193,27 @@ def test_ms_per_frame_of_a_cached_drape_is_the_original_computation_not_the_load
     assert drape_ms_per_frame({"rollout": 30.0}, drape_s=0.04, n_frames=10) == pytest.approx(4.0)
     with pytest.raises(ValueError, match="n_frames"):
         drape_ms_per_frame({}, drape_s=0.0, n_frames=0)
+
+
+@pytest.mark.parametrize("on_failure", ["stop", "record"])
+def test_a_diverged_method_stops_the_run_or_is_recorded(tmp_path, monkeypatch, on_failure):
+    from drapebench.errors import DrapeFailed
+    from drapebench.experiment import run
+    from methods.lbs.method import LBSMethod
+
+    def diverge(self, garment, seq):
+        raise DrapeFailed(f"{garment.kind} diverged at frame 3")
+
+    monkeypatch.setattr(LBSMethod, "drape", diverge)
+    cfg = _compose([*FAST, "viz=none", f"on_failure={on_failure}"])
+    out = tmp_path / "run"
+    if on_failure == "stop":
+        with pytest.raises(DrapeFailed, match="tshirt diverged at frame 3"):
+            run(cfg, out)
+        assert not (out / "failed.json").exists()
+    else:
+        rec = run(cfg, out)
+        saved = json.loads((out / "failed.json").read_text())
+        assert rec == saved and saved["status"] == "failed" and saved["error"] == "DrapeFailed"
+        assert saved["method"] == "lbs" and saved["garment"] == "tshirt" and "frame 3" in saved["message"]
+    assert not (out / "metrics.json").exists()

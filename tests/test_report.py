@@ -61,3 +61,22 @@ def test_shape_label():
 
     assert shape_label(None) == "mean" == shape_label([0.0, 0.0])
     assert shape_label([0.0, -2.0, 0.5]) == "b1=-2,b2=0.5"
+
+
+def test_failed_runs_show_as_failed_cells_in_tables_and_summaries(tmp_path):
+    import json
+    import shutil
+
+    shutil.copytree(FIXTURES, tmp_path / "sweep")
+    (tmp_path / "sweep" / "4_pbs_gown").mkdir()
+    (tmp_path / "sweep" / "4_pbs_gown" / "failed.json").write_text(json.dumps(
+        {"status": "failed", "method": "pbs", "garment": "gown", "motion": "kick", "body": "anny_lowres", "shape": "mean",
+         "error": "SimulationDiverged", "message": "diverged at frame 12 of 105", "commit": "def456"}))  # fmt: skip
+    md = write_table([tmp_path / "sweep"], "baseline", tmp_path / "t", command="pytest")[0].read_text()
+    assert "failed" in md and "diverged at frame 12 of 105" in md and "def456" in md
+    t = pd.read_csv(tmp_path / "t.csv", comment="#", header=[0, 1], index_col=0)
+    assert t.loc["pbs", ("gown", "ε_c (%)")] == "failed" and t.loc["lbs", ("gown", "ε_c (%)")] == "–"
+    assert float(t.loc["lbs", ("tshirt", "ε_e (%)")]) == 4.0  # finished cells are untouched
+    write_summary(tmp_path / "sweep")
+    rows = pd.read_csv(tmp_path / "sweep" / "summary.csv")
+    assert len(rows) == 5 and list(rows["status"]).count("failed") == 1

@@ -31,6 +31,7 @@ import torch
 from scipy.spatial import cKDTree
 
 from drapebench.cache import atomic_write, cache_dir, content_hash
+from drapebench.errors import DrapeFailed
 from drapebench.physics.material import Material
 from drapebench.progress import progress as progress_bar
 from drapebench.reference.settings import SimSettings
@@ -40,7 +41,7 @@ MAX_START_INSIDE = 0.01  # a garment with more of its vertices inside the rest b
 MAX_STRETCH = 4.0  # an edge longer than this x its rest length counts as a blow-up
 
 
-class SimulationDiverged(RuntimeError):
+class SimulationDiverged(DrapeFailed):
     """The reference simulation blew up (NaN, runaway speed or torn elements); nothing was cached.
 
     Attributes: garment, sequence (names), frame (sequence frame, negative while settling), reason.
@@ -48,6 +49,7 @@ class SimulationDiverged(RuntimeError):
 
     def __init__(self, garment: str, sequence: str, frame: int, n_frames: int, reason: str, settings: SimSettings):
         self.garment, self.sequence, self.frame, self.reason = garment, sequence, frame, reason
+        self._args = (garment, sequence, frame, n_frames, reason, settings)
         where = f"settling frame {frame + settings.settle_frames} of {settings.settle_frames}" if frame < 0 else \
             f"frame {frame} of {n_frames}"  # fmt: skip
         super().__init__(
@@ -56,6 +58,9 @@ class SimulationDiverged(RuntimeError):
             f"iterations (iterations={2 * settings.iterations}), a higher sequence fps, or a slower motion; "
             f"the other solver (solver={'style3d' if settings.solver == 'vbd' else 'vbd'}) may also cope."
         )
+
+    def __reduce__(self):  # rebuilt from its arguments: parallel sweep workers send it to the launcher pickled
+        return type(self), self._args
 
 
 @dataclass

@@ -50,6 +50,7 @@ import torch
 
 from drapebench.body.lbs import lbs
 from drapebench.cache import atomic_write, cache_dir, content_hash
+from drapebench.errors import TrainingDiverged
 from drapebench.geometry.ops import vertex_normals
 from drapebench.geometry.proximity import culled_body_vertices, nearest_body_vertex
 from drapebench.physics import (
@@ -299,7 +300,8 @@ class GAPS(DrapingMethod):
             terms["inext"] = p["inextensibility_weight"] * inextensibility_energy(x, topo, k_ext).sum() / B
         loss = sum(terms.values())
         if not torch.isfinite(loss):
-            raise FloatingPointError(f"gaps: non-finite loss at epoch {epoch}: { {k: float(v) for k, v in terms.items()} }")
+            raise TrainingDiverged(f"gaps: non-finite loss at epoch {epoch}: { {k: float(v) for k, v in terms.items()} }; "
+                                   "lower train.params.lr or the loss weights, or try another seed")
         opt.zero_grad(set_to_none=True)
         loss.backward()
         opt.step()

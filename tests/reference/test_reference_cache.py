@@ -93,3 +93,16 @@ def test_pbs_method_reports_the_original_simulation_time(scene, body_lowres, stu
     assert second.timings_ms["simulate"] == pytest.approx(6000.0) and "cache_load" in second.timings_ms
     with pytest.raises(ValueError, match="unknown reference setting"):
         methods.get("pbs")({"solver": "vbd", "substep": 2})
+
+
+def test_diverged_error_survives_pickling_for_parallel_sweeps(scene, body_lowres):
+    import pickle
+
+    from drapebench.errors import DrapeFailed
+    from drapebench.reference import SimSettings
+
+    g, seq = scene
+    err = SimulationDiverged(g.name, seq.name, 5, seq.n_frames, "12 vertices became NaN/Inf", SimSettings.for_solver("vbd"))
+    back = pickle.loads(pickle.dumps(err))
+    assert type(back) is SimulationDiverged and isinstance(back, DrapeFailed)
+    assert str(back) == str(err) and back.frame == 5 and back.garment == g.name
