@@ -14,8 +14,8 @@ posed body of the sequence:
 - ``vertex_error_mm``: mean distance to the reference drape (mm), when one is given;
 - ``energy_<name>``: :func:`drapebench.physics.energy_terms` per frame (J; collision in m^3, unweighted).
 
-The summary is the mean over the evaluated frames, except ``eps_c_std`` (std over frames of
-``eps_c``) and ``penetration_mm`` (mean depth over all penetrating vertices of all frames). The
+The summary is the mean over the evaluated frames, plus ``eps_e_std``, ``eps_a_std`` and ``eps_c_std``
+(population std over frames of the per-frame values), except ``penetration_mm`` (mean depth over all penetrating vertices of all frames). The
 sequence's leading transition frames (rest pose -> motion) are left out by default. Body queries
 only look at the body parts near the garment (:func:`culled_body_vertices`).
 """
@@ -118,7 +118,7 @@ def evaluate(
             cols.update({f"energy_{k}": v for k, v in terms.items()})
     df = pd.DataFrame({"frame": frames.numpy(), **{k: v.detach().cpu().double().numpy() for k, v in cols.items()}})
     summary = {k: float(df[k].mean()) for k in df.columns if k != "frame"}  # pandas skips the NaN jitter ends
-    summary["eps_c_std"] = float(df["eps_c"].std(ddof=0))
+    summary.update({f"{k}_std": float(df[k].std(ddof=0)) for k in ("eps_e", "eps_a", "eps_c")})
     summary["penetration_mm"] = float(depth.sum() / n_in.sum().clamp_min(1) * 1e3)
     summary["n_frames_evaluated"] = len(df)
     return summary, df

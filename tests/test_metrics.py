@@ -34,6 +34,7 @@ def test_eps_c_is_exact_for_points_inside_a_sphere(sphere_scene):
     expected = [100 * len(i) / n for i in inside[1:]]  # frame 0 is the transition
     assert np.allclose(frames["eps_c"], expected) and np.allclose(frames["eps_c_nn"], expected)
     assert np.isclose(summary["eps_c"], np.mean(expected)) and np.isclose(summary["eps_c_std"], np.std(expected))
+    assert np.isclose(summary["eps_e_std"], frames["eps_e"].std(ddof=0)) and summary["eps_e_std"] > 0
     assert np.allclose(frames["penetration_mm"], [200, 200, 200], atol=2.0)  # mesh vs true sphere
 
 
@@ -43,6 +44,7 @@ def test_uniform_stretch_and_reference_error(sphere_scene):
     summary, _ = evaluate(garment, seq, body, pred, reference=pred * 0 + garment.vertices, energies=True)
     assert np.isclose(summary["eps_e"], 10.0, atol=1e-3) and np.isclose(summary["eps_a"], 21.0, atol=1e-3)
     assert np.isclose(summary["vertex_error_mm"], 80.0, rtol=1e-4)  # every vertex 0.08 m out
+    assert summary["eps_e_std"] < 1e-3 and summary["eps_a_std"] < 1e-3  # the same stretch in every frame
     assert summary["jitter"] == 0.0 and summary["eps_c"] == 0.0 and summary["penetration_mm"] == 0.0
     assert summary["energy_stvk"] > 0 and "energy_collision" in summary
 
