@@ -94,6 +94,17 @@ TRAIN_DEFAULTS = dict(
 )
 
 
+def scheduled_lr(tp: dict, epoch: int, step_fraction: float, train_s: float) -> float:
+    """Learning rate of a step: ``lr`` before ``lr_switch_epoch``, then ``lr_after``; with ``lr_decay_fraction``
+    f it decays linearly to 0 over the last f of the budget: of the steps (``step_fraction`` done), or of
+    ``max_minutes`` when set (``train_s`` seconds trained so far, resumed runs included), whichever is further."""
+    lr = tp["lr"] if epoch < tp["lr_switch_epoch"] else tp["lr_after"]
+    if tp["lr_decay_fraction"]:
+        done = step_fraction if tp["max_minutes"] is None else max(step_fraction, train_s / (60.0 * tp["max_minutes"]))
+        lr *= min(1.0, max(0.0, 1.0 - done) / tp["lr_decay_fraction"])
+    return lr
+
+
 class GapsNet(torch.nn.Module):
     """GRU regressor: (B, T, in) -> (B, T, V*3) canonical displacements; returns the new hidden state too."""
 
@@ -228,10 +239,7 @@ class GAPS(DrapingMethod):
             k = step % steps_per_epoch
             if k == 0:
                 order = rng.permutation(len(windows))
-            lr = tp["lr"] if epoch < tp["lr_switch_epoch"] else tp["lr_after"]
-            if tp["lr_decay_fraction"]:  # linear decay to 0 over the last fraction of the step or time budget
-                done = step / total_steps if deadline is None else max(step / total_steps, (time.perf_counter() - t0) / deadline)
-                lr *= min(1.0, (1.0 - done) / tp["lr_decay_fraction"])
+            lr = scheduled_lr(tp, epoch, step / total_steps, t_prev + time.perf_counter() - t0)
             for g in opt.param_groups:
                 g["lr"] = g["factor"] * lr
             batch = [windows[j] for j in order[k * tp["batch_size"] : (k + 1) * tp["batch_size"]]]

@@ -59,6 +59,18 @@ def test_weight_averaging_and_lr_decay(scene):
     assert all(x >= y for x, y in zip(lrs, lrs[1:]))
 
 
+def test_lr_decays_over_the_step_or_the_time_budget_whichever_is_further():
+    from methods.gaps.method import scheduled_lr
+
+    tp = {"lr": 1e-3, "lr_after": 1e-4, "lr_switch_epoch": 2, "lr_decay_fraction": 0.5, "max_minutes": None}
+    assert scheduled_lr(tp, 0, 0.25, 1e6) == pytest.approx(1e-3)  # no time budget: the time is ignored
+    assert scheduled_lr(tp, 0, 0.75, 0.0) == pytest.approx(0.5e-3) and scheduled_lr(tp, 0, 1.0, 0.0) == 0.0
+    assert scheduled_lr(tp, 2, 0.5, 0.0) == pytest.approx(1e-4)  # after the switch epoch
+    timed = {**tp, "max_minutes": 10.0}
+    assert scheduled_lr(timed, 0, 0.25, 450.0) == pytest.approx(0.5e-3)  # 75 % of 10 min: halfway down
+    assert scheduled_lr(timed, 0, 0.25, 700.0) == 0.0  # past the time budget: never negative
+
+
 def test_gradients_finite_through_300_frames(scene):
     body, g, _ = scene
     m, _ = _fit(scene)
