@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import json
 import platform
+import re
 import sys
 from datetime import datetime, timezone
 from pathlib import Path
@@ -34,12 +35,17 @@ METRIC_LABELS = {"eps_e": "ε_e (%)", "eps_a": "ε_a (%)", "eps_c": "ε_c (%)", 
                  "smoothness": "smooth.", "vertex_error_mm": "err. (mm)"}  # fmt: skip
 
 
+def _job_order(path: Path) -> list:
+    """Sort key putting sweep job folders in job order (2_x before 10_x)."""
+    return [int(p) if p.isdigit() else p for p in re.split(r"(\d+)", str(path))]
+
+
 def collect(dirs) -> pd.DataFrame:
-    """One row per ``metrics.json`` found below ``dirs`` (a run dir or a sweep dir), with its ``run_dir``."""
+    """One row per ``metrics.json`` found below ``dirs`` (a run dir or a sweep dir, jobs in job order), with its ``run_dir``."""
     rows = []
     for d in dirs:
         d = Path(d)
-        files = [d / "metrics.json"] if (d / "metrics.json").exists() else sorted(d.rglob("metrics.json"))
+        files = [d / "metrics.json"] if (d / "metrics.json").exists() else sorted(d.rglob("metrics.json"), key=_job_order)
         for f in files:
             rec = json.loads(f.read_text())
             rec["run_dir"] = str(f.parent)
@@ -54,7 +60,7 @@ def collect_failures(dirs) -> pd.DataFrame:
     an empty frame when none failed."""
     rows = []
     for d in map(Path, dirs):
-        files = [d / "failed.json"] if (d / "failed.json").exists() else sorted(d.rglob("failed.json"))
+        files = [d / "failed.json"] if (d / "failed.json").exists() else sorted(d.rglob("failed.json"), key=_job_order)
         rows += [{**json.loads(f.read_text()), "run_dir": str(f.parent)} for f in files]
     return pd.DataFrame(rows)
 

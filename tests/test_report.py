@@ -80,3 +80,14 @@ def test_failed_runs_show_as_failed_cells_in_tables_and_summaries(tmp_path):
     write_summary(tmp_path / "sweep")
     rows = pd.read_csv(tmp_path / "sweep" / "summary.csv")
     assert len(rows) == 5 and list(rows["status"]).count("failed") == 1
+
+
+def test_jobs_are_collected_in_job_order(tmp_path):
+    import json
+    import shutil
+
+    for i, garment in [(2, "skirt"), (10, "gown"), (1, "tshirt")]:
+        shutil.copytree(FIXTURES / "0_lbs_tshirt", tmp_path / f"{i}_lbs_{garment}")
+        f = tmp_path / f"{i}_lbs_{garment}" / "metrics.json"
+        f.write_text(json.dumps({**json.loads(f.read_text()), "garment": garment}))
+    assert list(collect([tmp_path])["garment"]) == ["tshirt", "skirt", "gown"]
