@@ -16,7 +16,7 @@ def main(cfg: DictConfig) -> float:
     from drapebench.experiment import run
 
     record = run(cfg)
-    return record["eps_c"]  # the value an optimising sweeper minimises
+    return float("inf") if record.get("status") == "failed" else record["eps_c"]  # what an optimising sweeper minimises
 
 
 if __name__ == "__main__":

@@ -327,7 +327,7 @@ class GAPS(DrapingMethod):
             self._setup(garment)  # per-garment constants (after load_state_dict); learned weights are kept
         t0 = time.perf_counter()
         transforms = seq.transforms(self.body)
-        betas = seq.betas[None, : self.body.n_betas].to(self.body.dtype)
+        betas = self._sequence_betas(seq)
         vel = torch.cat([torch.zeros(1, 3), (seq.trans[1:] - seq.trans[:-1]) * seq.fps])[None].to(self.body.dtype)
         t1 = time.perf_counter()
         with torch.inference_mode():
@@ -345,9 +345,16 @@ class GAPS(DrapingMethod):
             timings["postprocess"] = ms(t3, time.perf_counter())
         return DrapeResult(x.clone(), timings)
 
+    def _sequence_betas(self, seq) -> torch.Tensor:
+        """(1, S) the sequence's shape coefficients, zero-padded to the body's S (a sequence may give fewer)."""
+        betas = torch.zeros(1, self.body.n_betas, dtype=self.body.dtype)
+        given = seq.betas[: self.body.n_betas]
+        betas[0, : len(given)] = given.to(self.body.dtype)
+        return betas
+
     def forward_sequence(self, garment, seq, h0=None):
         """Differentiable drape (T, V, 3) and final hidden state, for tests and fine-tuning."""
-        betas = seq.betas[None, : self.body.n_betas].to(self.body.dtype)
+        betas = self._sequence_betas(seq)
         vel = torch.cat([torch.zeros(1, 3), (seq.trans[1:] - seq.trans[:-1]) * seq.fps])[None].to(self.body.dtype)
         delta, h = self.net(self._inputs(betas, seq.poses[None].to(self.body.dtype), vel), h0)
         return lbs(self._canonical(delta, betas)[0], self.weights, seq.transforms(self.body)), h

@@ -94,6 +94,15 @@ def test_hidden_state_is_carried(scene):
     assert not torch.allclose(reset, full[10:], atol=1e-5)
 
 
+def test_a_sequence_with_fewer_betas_drapes_as_with_zero_padding(scene):
+    body, g, _ = scene
+    m, _ = _fit(scene)
+    short = make_sequence("walk", 6, seed=2, betas=[0.0, -2.0])
+    padded = make_sequence("walk", 6, seed=2, betas=[0.0, -2.0] + [0.0] * (body.n_betas - 2))
+    assert len(short.betas) == 2 < body.n_betas
+    assert torch.allclose(m.drape(g, short).vertices, m.drape(g, padded).vertices, atol=1e-6)
+
+
 def test_rbf_weights_match_brute_force_and_sum_to_one(body_lowres):
     g = make_garment("skirt", body_lowres)
     rest = body_lowres.v_template
