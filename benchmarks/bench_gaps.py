@@ -15,7 +15,7 @@ from drapebench.physics import Material
 
 def main():
     body = load_body("anny")
-    g = make_garment("tshirt", body)
+    g = make_garment("tshirt", body, resolution=0.013)  # ~4k vertices, the target size
     m = methods.get("gaps")({})
     m.bind(body, Material())
     torch.manual_seed(0)
