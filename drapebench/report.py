@@ -40,13 +40,17 @@ def _job_order(path: Path) -> list:
     return [int(p) if p.isdigit() else p for p in re.split(r"(\d+)", str(path))]
 
 
+def _run_files(d: Path, name: str) -> list[Path]:
+    """``d/name`` when ``d`` is a run dir, else every ``name`` below ``d`` (a sweep), in job order."""
+    return [d / name] if (d / name).exists() else sorted(d.rglob(name), key=_job_order)
+
+
 def collect(dirs) -> pd.DataFrame:
     """One row per ``metrics.json`` found below ``dirs`` (a run dir or a sweep dir, jobs in job order), with its ``run_dir``."""
     rows = []
     for d in dirs:
         d = Path(d)
-        files = [d / "metrics.json"] if (d / "metrics.json").exists() else sorted(d.rglob("metrics.json"), key=_job_order)
-        for f in files:
+        for f in _run_files(d, "metrics.json"):
             rec = json.loads(f.read_text())
             rec["run_dir"] = str(f.parent)
             rows.append(rec)
@@ -60,8 +64,7 @@ def collect_failures(dirs) -> pd.DataFrame:
     an empty frame when none failed."""
     rows = []
     for d in map(Path, dirs):
-        files = [d / "failed.json"] if (d / "failed.json").exists() else sorted(d.rglob("failed.json"), key=_job_order)
-        rows += [{**json.loads(f.read_text()), "run_dir": str(f.parent)} for f in files]
+        rows += [{**json.loads(f.read_text()), "run_dir": str(f.parent)} for f in _run_files(d, "failed.json")]
     return pd.DataFrame(rows)
 
 
