@@ -14,10 +14,11 @@ posed body of the sequence:
 - ``vertex_error_mm``: mean distance to the reference drape (mm), when one is given;
 - ``energy_<name>``: :func:`drapebench.physics.energy_terms` per frame (J; collision in m^3, unweighted).
 
-The summary is the mean over the evaluated frames, plus ``eps_e_std``, ``eps_a_std`` and ``eps_c_std``
-(population std over frames of the per-frame values), except ``penetration_mm`` (mean depth over all penetrating vertices of all frames). The
-sequence's leading transition frames (rest pose -> motion) are left out by default. Body queries
-only look at the body parts near the garment (:func:`culled_body_vertices`).
+The summary is the mean over the evaluated frames of every column, except ``penetration_mm`` (mean
+depth over all penetrating vertices of all frames); ``eps_e_std``, ``eps_a_std`` and ``eps_c_std``
+are the population std over frames of those metrics. The sequence's leading transition frames (rest
+pose -> motion) are left out by default. Body queries only look at the body parts near the garment
+(:func:`culled_body_vertices`).
 """
 
 from __future__ import annotations

@@ -94,6 +94,11 @@ TRAIN_DEFAULTS = dict(
 )
 
 
+def root_velocity(seq) -> torch.Tensor:
+    """(T, 3) root translation velocity of a sequence in m/s (backward difference; 0 at the first frame)."""
+    return torch.cat([torch.zeros(1, 3, dtype=seq.trans.dtype), (seq.trans[1:] - seq.trans[:-1]) * seq.fps])
+
+
 def scheduled_lr(tp: dict, epoch: int, step_fraction: float, train_s: float) -> float:
     """Learning rate of a step: ``lr`` before ``lr_switch_epoch``, then ``lr_after``; with ``lr_decay_fraction``
     f it decays linearly to 0 over the last f of the budget: of the steps (``step_fraction`` done), or of
@@ -206,7 +211,7 @@ class GAPS(DrapingMethod):
         W = tp["window"]
         windows = [(i, t) for i, s in enumerate(seqs) for t in range(1, s.n_frames - W + 1)]
         poses = [s.poses.to(self.body.dtype) for s in seqs]
-        vels = [torch.cat([torch.zeros(1, 3), (s.trans[1:] - s.trans[:-1]) * s.fps]).to(self.body.dtype) for s in seqs]
+        vels = [root_velocity(s).to(self.body.dtype) for s in seqs]
         trans = [s.trans.to(self.body.dtype) for s in seqs]
         if self.p["normalize_inputs"]:
             allx = torch.cat([torch.cat([p.reshape(len(p), -1), v], -1) for p, v in zip(poses, vels)])
@@ -328,7 +333,7 @@ class GAPS(DrapingMethod):
         t0 = time.perf_counter()
         transforms = seq.transforms(self.body)
         betas = self._sequence_betas(seq)
-        vel = torch.cat([torch.zeros(1, 3), (seq.trans[1:] - seq.trans[:-1]) * seq.fps])[None].to(self.body.dtype)
+        vel = root_velocity(seq)[None].to(self.body.dtype)
         t1 = time.perf_counter()
         with torch.inference_mode():
             delta, _ = self.net(self._inputs(betas, seq.poses[None].to(self.body.dtype), vel))
@@ -355,7 +360,7 @@ class GAPS(DrapingMethod):
     def forward_sequence(self, garment, seq, h0=None):
         """Differentiable drape (T, V, 3) and final hidden state, for tests and fine-tuning."""
         betas = self._sequence_betas(seq)
-        vel = torch.cat([torch.zeros(1, 3), (seq.trans[1:] - seq.trans[:-1]) * seq.fps])[None].to(self.body.dtype)
+        vel = root_velocity(seq)[None].to(self.body.dtype)
         delta, h = self.net(self._inputs(betas, seq.poses[None].to(self.body.dtype), vel), h0)
         return lbs(self._canonical(delta, betas)[0], self.weights, seq.transforms(self.body)), h
 
