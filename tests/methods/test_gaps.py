@@ -59,6 +59,14 @@ def test_weight_averaging_and_lr_decay(scene):
     assert all(x >= y for x, y in zip(lrs, lrs[1:]))
 
 
+def test_gradient_clipping(scene):
+    _, a = _fit(scene, seed=2)
+    _, b = _fit(scene, seed=2, grad_clip=1e-3)
+    assert all(h["grad_norm"] > 1e-3 for h in a.history)  # so the clip acts on every step
+    assert [h["grad_norm"] for h in a.history[:1]] == [h["grad_norm"] for h in b.history[:1]]  # the norm before clipping
+    assert a.history[0]["loss"] == b.history[0]["loss"] and a.history[-1]["loss"] != b.history[-1]["loss"]
+
+
 def test_lr_decays_over_the_step_or_the_time_budget_whichever_is_further():
     from methods.gaps.method import scheduled_lr
 
