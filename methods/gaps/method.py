@@ -323,6 +323,9 @@ class GAPS(DrapingMethod):
         loss.backward()
         trained = [q for g in opt.param_groups for q in g["params"]]
         grad_norm = torch.nn.utils.clip_grad_norm_(trained, tp["grad_clip"] or math.inf)  # the norm before clipping
+        if not torch.isfinite(grad_norm):  # a finite loss can still have a non-finite gradient: never step on it
+            raise TrainingDiverged(f"gaps: non-finite gradient at epoch {epoch} (loss {loss.item():.4g}); "
+                                   "lower train.params.lr or set train.params.grad_clip, or try another seed")
         opt.step()
         return {"loss": loss.item(), **{k: v.item() for k, v in terms.items()}, "grad_norm": grad_norm.item()}
 

@@ -67,6 +67,18 @@ def test_gradient_clipping(scene):
     assert a.history[0]["loss"] == b.history[0]["loss"] and a.history[-1]["loss"] != b.history[-1]["loss"]
 
 
+def test_a_non_finite_gradient_stops_training_before_the_step(scene, monkeypatch):
+    from drapebench.errors import TrainingDiverged
+
+    body, g, seqs = scene
+    m = methods.get("gaps")({})
+    data = TrainData(body=body, material=Material(), garment=g, load_train=lambda: seqs)
+    monkeypatch.setattr(torch.nn.utils, "clip_grad_norm_", lambda params, max_norm: torch.tensor(float("nan")))
+    with pytest.raises(TrainingDiverged, match="non-finite gradient"):
+        m.fit(data, {"seed": 0, "params": QUICK})
+    assert torch.count_nonzero(m.net.out.weight) == 0  # the zero-initialised output layer never stepped
+
+
 def test_lr_decays_over_the_step_or_the_time_budget_whichever_is_further():
     from methods.gaps.method import scheduled_lr
 
