@@ -13,4 +13,4 @@ class DrapeFailed(RuntimeError):
 
 
 class TrainingDiverged(DrapeFailed):
-    """Training produced a non-finite loss; nothing was checkpointed."""
+    """Training produced a non-finite loss or gradient; no trained checkpoint was written."""
