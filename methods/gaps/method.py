@@ -11,7 +11,10 @@ Choices where the paper is silent or differs from the public code (all configura
   the output layer starts at zero (``zero_init_output``), so training starts from the skinned
   template; the paper does not say, and Keras' default init starts tens of centimetres off it;
 * skinning weights from RBF body participation with the code's constant k = 0.25 (paper: 0.5),
-  trainable and unconstrained as in the code (``trainable_weights``);
+  trainable and unconstrained as in the code (``trainable_weights``); LBS uses the joint transforms
+  without the root translation, which is added afterwards, as in the code (``skin_then_translate``;
+  with unconstrained weights, translation inside the transforms would scale a sequence's distance
+  travelled by each weight row's sum);
 * training windows of 3 consecutive frames; GRU state drawn from N(0, 0.1^2) in training, zeros at
   inference; strain/bending/gravity/collision/inextensibility summed over the 3 frames, inertia
   once on the last frame against stop_gradient(2 x1 - x0); every term divided by the batch size;
@@ -102,6 +105,16 @@ TRAIN_DEFAULTS = dict(
 def root_velocity(seq) -> torch.Tensor:
     """(T, 3) root translation velocity of a sequence in m/s (backward difference; 0 at the first frame)."""
     return torch.cat([torch.zeros(1, 3, dtype=seq.trans.dtype), (seq.trans[1:] - seq.trans[:-1]) * seq.fps])
+
+
+def skin_then_translate(points: torch.Tensor, weights: torch.Tensor, transforms: torch.Tensor, trans: torch.Tensor) -> torch.Tensor:
+    """GAPS's skinning order: LBS with the joint transforms (..., J, 4, 4) minus the root translation trans
+    (..., 3) m, then the translation added. Equal to plain LBS when the weight rows sum to one; with the
+    trainable, unconstrained weights it keeps a row-sum drift from scaling the distance travelled
+    (a run's 9.7 m) into the garment, and the weights' gradient free of it. points (..., V, 3) -> (..., V, 3)."""
+    local = transforms.clone()
+    local[..., :3, 3] -= trans[..., None, :]
+    return lbs(points, weights, local) + trans[..., None, :]
 
 
 def scheduled_lr(tp: dict, epoch: int, step_fraction: float, train_s: float) -> float:
@@ -295,7 +308,7 @@ class GAPS(DrapingMethod):
         h0 = torch.randn(p["layers"], B, p["hidden"], dtype=body.dtype) * tp["hidden_init_std"]
         delta, _ = self.net(self._inputs(betas, pose, vel), h0)
         xc = self._canonical(delta, betas).reshape(B * W, -1, 3)
-        x = lbs(xc, self.weights, out.transforms)  # (B*W, V, 3)
+        x = skin_then_translate(xc, self.weights, out.transforms, tr.reshape(B * W, 3))  # (B*W, V, 3)
         nn = nearest_body_vertex(x, out.vertices, normals, self.candidates)
         topo = self.topology
         blend = self.bend_blend if p["bending"] == "blend" else None
@@ -349,7 +362,7 @@ class GAPS(DrapingMethod):
             delta, _ = self.net(self._inputs(betas, seq.poses[None].to(self.body.dtype), vel))
             t2 = time.perf_counter()
             xc = self._canonical(delta, betas)[0]
-            x = lbs(xc, self.weights, transforms)
+            x = skin_then_translate(xc, self.weights, transforms, seq.trans.to(xc.dtype))
         t3 = time.perf_counter()
         ms = lambda a, b: (b - a) * 1e3  # noqa: E731
         timings = {"body": ms(t0, t1), "network": ms(t1, t2), "skinning": ms(t2, t3)}
@@ -372,7 +385,8 @@ class GAPS(DrapingMethod):
         betas = self._sequence_betas(seq)
         vel = root_velocity(seq)[None].to(self.body.dtype)
         delta, h = self.net(self._inputs(betas, seq.poses[None].to(self.body.dtype), vel), h0)
-        return lbs(self._canonical(delta, betas)[0], self.weights, seq.transforms(self.body)), h
+        x = skin_then_translate(self._canonical(delta, betas)[0], self.weights, seq.transforms(self.body), seq.trans.to(self.body.dtype))
+        return x, h
 
     # ------------------------------------------------------------------ state
     def state_dict(self) -> dict:
