@@ -55,7 +55,7 @@ class MaterialConf:
 
 @dataclass
 class TrainConf:
-    name: str = "default"
+    name: str = "cpu"
     dataset: str = "train_small"  # drapebench.body.dataset name
     seed: int = 0
     params: Dict[str, Any] = field(default_factory=dict)  # method-specific training settings

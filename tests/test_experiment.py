@@ -86,6 +86,13 @@ def test_every_experiment_config_composes():
     assert _compose([]).on_failure.name == "stop"
 
 
+def test_default_training_is_the_cpu_budget_and_paper_is_opt_in():
+    default = _compose(["method=gaps"]).train
+    assert default.name == "cpu" and default.params.max_minutes <= 10  # `python run.py method=gaps` ends on a CPU
+    paper = _compose(["method=gaps", "train=paper"]).train
+    assert paper.params.epochs == 1000 and paper.params.max_minutes is None
+
+
 def _fresh(extra=()):
     """A config whose test sequence nothing has cached yet (a new motion seed), so cache use is observable."""
     seed = int.from_bytes(os.urandom(3), "little")
