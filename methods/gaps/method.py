@@ -30,8 +30,8 @@ Choices where the paper is silent or differs from the public code (all configura
   per step at lr 1e-4), which short CPU runs never recover from;
 * optional, off by default and on in ``train=cpu`` (none is in the paper or the code): ``ema_decay``
   keeps an exponential moving average of the trained weights (TF's warm-up, decay
-  min(d, (1+n)/(10+n))) and uses it as the model; ``lr_decay_fraction`` decays the rate linearly to 0 over that last fraction of the
-  step (or ``max_minutes`` time) budget. Both remove the per-step Adam noise that a short, small-batch
+  min(d, (1+n)/(10+n))) and uses it as the model; ``lr_decay_fraction`` decays the rate linearly
+  to 0 over that last fraction of the step (or ``max_minutes`` time) budget. Both remove the per-step Adam noise that a short, small-batch
   run leaves in the V x 3 output (measured: edge lengths jittered by about +-4.5 % around a correct
   mean, see ``conf/train/cpu.yaml``); ``grad_clip`` scales each step's gradient to at most that global
   norm (not in the paper or the code). Measured at the start of a tshirt run on train_small: windows
