@@ -31,14 +31,15 @@ Choices where the paper is silent or differs from the public code (all configura
 * optional, off by default and on in ``train=cpu`` (none is in the paper or the code): ``ema_decay``
   keeps an exponential moving average of the trained weights (TF's warm-up, decay
   min(d, (1+n)/(10+n))) and uses it as the model; ``lr_decay_fraction`` decays the rate linearly
-  to 0 over that last fraction of the step (or ``max_minutes`` time) budget. Both remove the per-step Adam
-  noise that a short, small-batch run leaves in the V x 3 output (measured: edge lengths jittered by
-  about +-4.5 % around a correct mean, see ``conf/train/cpu.yaml``); ``grad_clip`` scales each
-  step's gradient to at most that global norm (not in the paper or the code). Measured at the start
-  of a tshirt run on train_small: windows of walk have gradient norms 17-46, of arm_raise up to
-  2,130 (a batch of 8 copies of one window), so in a batch of 8 the few extreme windows set the
-  direction and Adam's second moment (our reading; clipping at 20 took the tshirt's held-out eps_e
-  from 3.31 % to 2.56 %); every step's norm is in the history (``grad_norm``, before clipping);
+  to 0 over that last fraction of the step (or ``max_minutes`` time) budget. Both remove the
+  per-step Adam noise that a short, small-batch run leaves in the V x 3 output (measured: edge
+  lengths jittered by about +-4.5 % around a correct mean, see ``conf/train/cpu.yaml``);
+  ``grad_clip`` scales each step's gradient to at most that global norm (not in the paper or the
+  code). Measured at the start of a tshirt run on train_small: windows of walk have gradient norms
+  17-46, of arm_raise up to 2,130 (a batch of 8 copies of one window), so in a batch of 8 the few
+  extreme windows set the direction and Adam's second moment (our reading; clipping at 20 took the
+  tshirt's held-out eps_e from 3.31 % to 2.56 %); every step's norm is in the history
+  (``grad_norm``, before clipping);
 * random body shapes, constant per window: beta_k ~ U(-r_k, r_k) on the first len(``beta_range``)
   components, the rest 0. The code draws the first 4 SMPL betas from U(-2, 2). Our PCA betas are in
   standard deviations of Anny's phenotype samples, whose first component scales the whole body
