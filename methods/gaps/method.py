@@ -38,8 +38,8 @@ Choices where the paper is silent or differs from the public code (all configura
   code). Measured at the start of a tshirt run on train_small: windows of walk have gradient norms
   17-46, of arm_raise up to 2,130 (a batch of 8 copies of one window), so in a batch of 8 the few
   extreme windows set the direction and Adam's second moment (our reading; clipping at 20 took the
-  tshirt's held-out eps_e from 3.31 % to 2.56 %); every step's norm is in the history
-  (``grad_norm``, before clipping);
+  tshirt's held-out eps_e from 3.31 % to 2.56 % before ``skin_then_translate``; the preset now
+  gives 2.85 %); every step's norm is in the history (``grad_norm``, before clipping);
 * random body shapes, constant per window: beta_k ~ U(-r_k, r_k) on the first len(``beta_range``)
   components, the rest 0. The code draws the first 4 SMPL betas from U(-2, 2). Our PCA betas are in
   standard deviations of Anny's phenotype samples, whose first component scales the whole body
