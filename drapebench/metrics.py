@@ -1,4 +1,4 @@
-"""One metric suite for every method (definitions in DESIGN.md, "Metrics").
+"""One metric suite for every method (definitions, units and which direction is better: ``docs/metrics.md``).
 
 Per frame, for garment positions x (T, V, 3) against the template (``garment.topology``) and the
 posed body of the sequence:

@@ -1,6 +1,6 @@
 """SMPL-format linear blend skinning body model and its loader.
 
-Conventions (see DESIGN.md): metres, Z up, the body faces -Y, +X is the body's left side.
+Conventions (docs/design.md): metres, Z up, the body faces -Y, +X is the body's left side.
 ``pose`` is per-joint axis-angle (radians) in world-aligned axes about each joint, chained
 parent -> child as in SMPL; ``pose = 0`` is the rest pose (the Anny A-pose for baked bodies).
 """

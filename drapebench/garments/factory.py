@@ -1,6 +1,6 @@
 """Parametric garments built on the canonical body: offset surfaces and lofts, cut along isolines, remeshed.
 
-Construction (after ``../shared/notes/garment_construction.md``): the body's signed distance on a
+Construction (measured recipe in ``docs/references.md``): the body's signed distance on a
 grid (cached per body shape) -> a morphological closing for tops (armpits) -> marching cubes at an
 offset ``ease`` -> for loose garments, the union with a convex-hull loft that hangs past both legs
 -> exact isoline cuts (hem, waist, neck, sleeves, legs) whose heights and axes come from the body's

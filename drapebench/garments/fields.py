@@ -1,7 +1,7 @@
 """Implicit fields on a voxel grid around the canonical body: signed distance, morphological
 closing (fills armpits/crotch), and the convex-hull loft that loose garments hang as.
 
-Recipe measured in ``../shared/notes/garment_construction.md``; all heights come from the body's joints.
+Recipe measured in ``docs/references.md``; all heights come from the body's joints.
 """
 
 from __future__ import annotations

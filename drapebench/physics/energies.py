@@ -1,7 +1,7 @@
 """Cloth energies, batched over (B, V, 3), differentiable, float32 or float64.
 
 Each function returns a (B,) total, or per-element values with ``per_element=True``. Formulas
-follow the public GAPS/SNUG code (see ``../shared/notes/anchors_gaps_snug_ncs.md``) and the GenSim
+follow the public GAPS/SNUG code (``docs/references.md``) and the GenSim
 paper; the source of each is in its docstring. Loss *weights* are never applied here: the caller
 (method) owns them (e.g. GAPS's collision weight 250, the SNUG pitfall).
 """

@@ -21,7 +21,7 @@ CONF_DIR = Path(__file__).resolve().parents[2] / "conf" / "material"
 
 @dataclass(frozen=True)
 class Material:
-    """A cloth material (defaults: the GAPS/SNUG cotton of DESIGN.md).
+    """A cloth material (defaults: the GAPS/SNUG cotton, ``docs/references.md``).
 
     Fields: name; thickness t (m); bulk_density (kg/m^3); young E (Pa); poisson nu (-, in [0, 0.5));
     bending_multiplier (-, ARCSim/GAPS factor on the plate stiffness); collision_thickness eps (m,

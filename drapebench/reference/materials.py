@@ -24,7 +24,7 @@ SolverVBD (Chen et al. 2024, Vertex Block Descent)
   dihedral angle (as the suite's bending energy). Per edge k_e = D L_e / (A_0 + A_1) (A_i the two
   adjacent triangle areas): on a regular grid this gives D_eff = c h k_e = c D with c ~ 0.95-1.0 for
   bending across grid axes and ~0.7 for oblique bending (cylinder calibration in
-  ``../shared/notes/newton_anny.md``); on the remeshed (near-equilateral) garments the effective
+  ``docs/references.md``); on the remeshed (near-equilateral) garments the effective
   bending stiffness is therefore within ~30% of D and direction-dependent at the element scale.
 - Damping: stiffness-proportional (Rayleigh beta = ``damping`` s): ``tri_kd`` = beta tri_ke on the
   rate of C = F^T F (rotation-free), ``edge_kd`` = beta k_e on d theta/dt. The suite's energies
