@@ -28,8 +28,8 @@ from importlib import metadata
 
 import numpy as np
 import torch
-from scipy.spatial import cKDTree
 
+from drapebench.body.skinning import nearest_body_vertices, transfer_shape
 from drapebench.cache import atomic_write, cache_dir, content_hash
 from drapebench.errors import DrapeFailed
 from drapebench.physics.material import Material
@@ -134,13 +134,9 @@ def _timeline(seq, body, settle_frames: int):
 
 def _start_state(garment, seq, body):
     """Start positions (V, 3) on the rest body of shape seq.betas, and each vertex's nearest body vertex."""
-    nb = body.n_betas
+    idx = nearest_body_vertices(garment.vertices, body, garment.betas)
     with torch.no_grad():
-        g_rest = body.shaped(garment.betas[None, :nb].to(body.dtype))[0][0]
-        _, idx = cKDTree(g_rest.double().numpy()).query(garment.vertices.double().numpy())
-        idx = torch.as_tensor(idx, dtype=torch.long)
-        dbeta = (seq.betas[:nb] - garment.betas[:nb]).to(body.dtype)
-        start = garment.vertices.to(body.dtype) + torch.einsum("vcs,s->vc", body.shapedirs[idx][..., : dbeta.shape[0]], dbeta)
+        start = transfer_shape(garment.vertices.to(body.dtype), idx, body, garment.betas, seq.betas)
     return start, idx
 
 

@@ -1,0 +1,53 @@
+"""Bind any points (a garment template, sample points) to the body and move them with it.
+
+A binding is each point's nearest vertex of the rest body of the shape the points were made on. From it
+come the points' skinning weights (the body's at that vertex), a shape transfer to another body shape
+(the body's shape blend shape at that vertex) and posed positions. Every function is batched over frames
+and differentiable in the points, the weights and the transforms.
+"""
+
+from __future__ import annotations
+
+import torch
+from scipy.spatial import cKDTree
+
+from drapebench.body.lbs import lbs
+
+
+def nearest_body_vertices(points: torch.Tensor, body, betas: torch.Tensor | None = None) -> torch.Tensor:
+    """(N,) long index of the nearest vertex of the rest body of shape ``betas`` ((S',) or None = mean)
+    for each rest-pose point of ``points`` (N, 3) m."""
+    if points.dim() != 2 or points.shape[-1] != 3:
+        raise ValueError(f"points must be (N, 3) rest-pose positions, got {tuple(points.shape)}")
+    with torch.no_grad():
+        b = None if betas is None else torch.as_tensor(betas, dtype=body.dtype)[None, : body.n_betas]
+        rest = body.shaped(b)[0][0]
+    _, idx = cKDTree(rest.detach().cpu().double().numpy()).query(points.detach().cpu().double().numpy(), workers=1)
+    return torch.as_tensor(idx, dtype=torch.long, device=points.device)
+
+
+def nearest_weights(index: torch.Tensor, body) -> torch.Tensor:
+    """(N, J) skinning weights copied from the body vertices ``index`` (N,) (SNUG's and the LBS baseline's)."""
+    return body.weights[index].clone()
+
+
+def transfer_shape(points: torch.Tensor, index: torch.Tensor, body, betas_from, betas_to) -> torch.Tensor:
+    """Rest-pose points (N, 3) moved from body shape ``betas_from`` to ``betas_to`` ((S',) each, zero-padded
+    to the same length) by the body's shape blend shape at their bound vertices ``index`` (N,)."""
+    b_from, b_to = (torch.as_tensor(b, dtype=points.dtype).reshape(-1)[: body.n_betas] for b in (betas_from, betas_to))
+    n = max(len(b_from), len(b_to))
+    dbeta = torch.zeros(n, dtype=points.dtype, device=points.device)
+    dbeta[: len(b_to)] += b_to.to(points.device)
+    dbeta[: len(b_from)] -= b_from.to(points.device)
+    dirs = body.shapedirs[index][..., :n].to(points.dtype)  # (N, 3, n)
+    return points + torch.einsum("vcs,s->vc", dirs, dbeta)
+
+
+def skin_then_translate(points: torch.Tensor, weights: torch.Tensor, transforms: torch.Tensor, trans: torch.Tensor) -> torch.Tensor:
+    """LBS with the joint transforms (B, J, 4, 4) minus the root translation ``trans`` (B, 3) m, then the
+    translation added (GAPS's order). Equal to :func:`lbs` when the weight rows sum to one; with learned,
+    unconstrained weights it keeps a row-sum drift from scaling the distance travelled into the points.
+    points (N, 3) or (B, N, 3), weights (N, J) or (B, N, J) -> (B, N, 3)."""
+    local = transforms.clone()
+    local[..., :3, 3] -= trans[..., None, :]
+    return lbs(points, weights, local) + trans[..., None, :]
