@@ -12,9 +12,10 @@ What is baked:
   the joint (see :data:`BONE_GROUPS`). Joint positions are the driver bones' heads in Anny's
   reference pose (identity ``local-ref`` deltas), which is also the rest pose of the baked model:
   ``pose = 0`` reproduces ``v_template`` exactly.
-* **Shape space**: ``N_SAMPLES`` adult phenotypes (gender, age, muscle, weight, height, proportions
-  drawn from :data:`PHENOTYPE_RANGES` with a fixed seed) are posed at the reference pose; a PCA of the
-  full-resolution meshes gives ``shapedirs`` scaled so that ``betas`` are in standard deviations.
+* **Shape space**: ``N_SAMPLES`` phenotypes (gender, age, muscle, weight, height, proportions) drawn
+  with a fixed seed from the adult population of :data:`PHENOTYPE_POPULATION` are posed at the
+  reference pose; a PCA of the full-resolution meshes gives ``shapedirs`` scaled so that ``betas`` are
+  in standard deviations of that population: betas ~ N(0, I) is the population.
   The low-resolution body reuses the same PCA coefficients (its ``shapedirs`` are regressed on them),
   so the same ``betas`` mean the same person at both resolutions.
 * **Joint regressor**: per joint, an affine combination (weights summing to one) of nearby vertices
@@ -64,14 +65,20 @@ BONE_GROUPS = {
     "wrist": ["wrist.{s}", "finger*.{s}", "metacarpal*.{s}"],
 }
 
-# Adult phenotype ranges sampled uniformly (Anny's age anchors: 0.333 child, 0.667 young adult, 1 old).
-PHENOTYPE_RANGES = {
-    "gender": (0.0, 1.0),
-    "age": (0.55, 0.95),
-    "muscle": (0.1, 0.9),
-    "weight": (0.1, 0.9),
-    "height": (0.1, 0.9),
-    "proportions": (0.2, 0.8),
+# The adult population the shape space spans, per Anny phenotype (values in Anny's [0, 1] range; draws
+# are clipped to it): ("uniform", lo, hi) or ("normal", mean, std). Anny's height phenotype is about
+# 1.09 m per unit (measured: 1.37 m at 0 to 2.45 m at 1 for a young adult) and 0.5 is 1.83 m tall at
+# mid gender, so a uniform draw spans giants and children; the normal below puts the population at
+# 1.70 m +- 0.09 m (std, gender included). Age 0.6-0.95 is young adult to old (0.667 = young adult).
+# Weight, muscle and proportions change the waist by at most 0.77-0.93 m over their whole range
+# (measured), so they are drawn over all of it.
+PHENOTYPE_POPULATION = {
+    "gender": ("uniform", 0.0, 1.0),
+    "age": ("uniform", 0.6, 0.95),
+    "muscle": ("uniform", 0.0, 1.0),
+    "weight": ("uniform", 0.0, 1.0),
+    "height": ("normal", 0.38, 0.075),
+    "proportions": ("uniform", 0.0, 1.0),
 }
 N_SAMPLES = 320
 N_BETAS = 10
@@ -103,9 +110,13 @@ def _group_of_bones(labels: list[str]) -> np.ndarray:
 
 
 def sample_phenotypes(n: int, seed: int = SEED) -> dict[str, np.ndarray]:
-    """``n`` adult phenotypes, each a value in Anny's [0, 1] range, from :data:`PHENOTYPE_RANGES`."""
+    """``n`` adult phenotypes drawn from :data:`PHENOTYPE_POPULATION`, each clipped to Anny's [0, 1]."""
     rng = np.random.default_rng(seed)
-    return {k: rng.uniform(lo, hi, n) for k, (lo, hi) in PHENOTYPE_RANGES.items()}
+    out = {}
+    for key, (law, a, b) in PHENOTYPE_POPULATION.items():
+        draw = rng.uniform(a, b, n) if law == "uniform" else rng.normal(a, b, n)
+        out[key] = np.clip(draw, 0.0, 1.0)
+    return out
 
 
 def _anny_reference(model, phenotypes: dict[str, np.ndarray], batch: int = 32):
@@ -195,6 +206,7 @@ def bake(out_dir: Path = BODY_DIR, n_samples: int = N_SAMPLES, n_betas: int = N_
             U, S, Vt = np.linalg.svd(flat - mean, full_matrices=False)
             std = S[:n_betas] / np.sqrt(n_samples - 1)
             coeffs = U[:, :n_betas] * np.sqrt(n_samples - 1)  # (N, S) in std units
+            coeffs *= _growth_signs(Vt[:n_betas], mean.reshape(-1, 3))  # + beta = a larger body
             explained = (S[:n_betas] ** 2).sum() / (S**2).sum()
             report["pca_explained_variance"] = float(explained)
             report["pca_std"] = std.tolist()
@@ -219,7 +231,7 @@ def bake(out_dir: Path = BODY_DIR, n_samples: int = N_SAMPLES, n_betas: int = N_
             anny_topology=np.array(topology),
             anny_bone_labels=np.array(labels),
             anny_bone_to_joint=bone_to_joint,
-            phenotype_ranges=np.array(json.dumps(PHENOTYPE_RANGES)),
+            phenotype_population=np.array(json.dumps(PHENOTYPE_POPULATION)),
             anny_version=np.array(report["anny_version"]),
             pca_std=np.array(report["pca_std"], dtype=np.float32),  # std of each PCA coefficient (metres, L2 over all V*3 coords)
             pca_explained_variance=np.array(report["pca_explained_variance"]),
@@ -231,8 +243,38 @@ def bake(out_dir: Path = BODY_DIR, n_samples: int = N_SAMPLES, n_betas: int = N_
             np.savez_compressed(f, **arrays)
         report[f"{name}_vertices"] = V
         report[f"{name}_bytes"] = path.stat().st_size
+    report["shape_space"] = shape_space_table(Path(out_dir) / "anny.npz")
     report["bake_s"] = time.time() - t0
     return report
+
+
+def _growth_signs(directions: np.ndarray, mean_vertices: np.ndarray) -> np.ndarray:
+    """(S,) +-1 per PCA direction (S, V*3) so that a positive coefficient moves the vertices away from the
+    body's centroid on average (a larger body); the SVD's sign is arbitrary."""
+    radial = (mean_vertices - mean_vertices.mean(0)).reshape(-1)
+    return np.where(directions @ radial >= 0, 1.0, -1.0)
+
+
+def shape_space_table(path: Path, components: int = 4, values=(-3, -2, 0, 2, 3)) -> dict:
+    """Height and waist girth (m) of the baked body ``path`` at each of ``values`` on each of the first
+    ``components`` betas (the others 0): {"b0": {"-3": [height, girth], ...}, ...}."""
+    import torch
+
+    from drapebench.body.measure import body_height, waist_girth
+    from drapebench.body.model import load_body
+
+    body = load_body(str(path), dtype=torch.float64)
+    table = {}
+    for k in range(min(components, body.n_betas)):
+        row = {}
+        for value in values:
+            betas = torch.zeros(1, body.n_betas, dtype=torch.float64)
+            betas[0, k] = value
+            v, j = body.shaped(betas)
+            v, j = v[0].numpy(), j[0].numpy()
+            row[str(value)] = [round(body_height(v), 3), round(waist_girth(v, body.faces.numpy(), j, body.joint_names), 3)]
+        table[f"b{k}"] = row
+    return table
 
 
 def main(argv=None) -> None:

@@ -122,3 +122,30 @@ def test_bad_pose_input_is_reported(body_lowres):
         body_lowres.forward(None, pose)
     with pytest.raises(ValueError, match="betas"):
         body_lowres.forward(torch.zeros(1, 50))
+
+
+def test_shape_space_spans_adults_not_giants(body_lowres):
+    """betas ~ N(0, I) is the adult population: +-2 on any of the first four components keeps the
+    standing height inside the adult range (about 1.45-2.0 m) and the mean body near 1.7 m."""
+    from drapebench.body.measure import body_height
+
+    assert 1.6 < body_height(body_lowres.v_template.numpy()) < 1.8
+    for k in range(4):
+        for value in (-2.0, 2.0):
+            betas = torch.zeros(1, body_lowres.n_betas)
+            betas[0, k] = value
+            h = body_height(body_lowres.shaped(betas)[0][0].numpy())
+            assert 1.45 < h < 2.0, f"beta{k} = {value:+g} gives a {h:.2f} m tall body"
+
+
+def test_waist_girth_grows_with_the_body(body_lowres):
+    from drapebench.body.measure import waist_girth
+
+    def girth_at(value):
+        betas = torch.zeros(1, body_lowres.n_betas)
+        betas[0, 1] = value
+        v, j = body_lowres.shaped(betas)
+        return waist_girth(v[0].numpy(), body_lowres.faces.numpy(), j[0].numpy(), body_lowres.joint_names)
+
+    g = [girth_at(v) for v in (-2.0, 0.0, 2.0)]
+    assert 0.6 < g[0] < g[1] < g[2] < 1.3  # beta1 is body weight: a larger waist, in metres
