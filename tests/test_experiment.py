@@ -88,9 +88,9 @@ def test_every_experiment_config_composes():
 
 def test_default_training_is_the_cpu_budget_and_paper_is_opt_in():
     default = _compose(["method=gaps"]).train
-    assert default.name == "cpu" and default.params.max_minutes <= 10  # `python run.py method=gaps` ends on a CPU
+    assert default.name == "cpu" and default.max_minutes <= 10  # `python run.py method=gaps` ends on a CPU
     paper = _compose(["method=gaps", "train=paper"]).train
-    assert paper.params.epochs == 1000 and paper.params.max_minutes is None
+    assert paper.epochs == 1000 and paper.max_minutes is None
 
 
 def _fresh(extra=()):
