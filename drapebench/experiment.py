@@ -2,7 +2,8 @@
 
 Outputs in the Hydra run directory: ``metrics.json`` (one flat record), ``frames.csv`` (one row per
 frame), ``prediction.h5``, ``drape.rrd`` (unless ``viz=none``), ``config.yaml`` (resolved) and
-``env.json`` (commit, package versions, device, threads). Every file is written atomically.
+``env.json`` (commit, package versions, device, threads), and ``losses.csv`` for a learned method
+(drapebench.train). Every file is written atomically.
 """
 
 from __future__ import annotations
