@@ -2,7 +2,8 @@
 
 Outputs in the Hydra run directory: ``metrics.json`` (one flat record), ``frames.csv`` (one row per
 frame), ``prediction.h5``, ``drape.rrd`` (unless ``viz=none``), ``config.yaml`` (resolved) and
-``env.json`` (commit, package versions, device, threads). Every file is written atomically.
+``env.json`` (commit, package versions, device, threads), and ``losses.csv`` for a learned method
+(drapebench.train). Every file is written atomically.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from omegaconf import DictConfig, OmegaConf
 from drapebench.body.dataset import dataset_hash
 from drapebench.cache import PROJECT_ROOT, atomic_write, cache_dir, content_hash, file_checksum, write_json
 from drapebench.errors import DrapeFailed
+from drapebench.train.checkpoint import write_losses
 
 log = logging.getLogger("drapebench")
 SUMMARY_COLUMNS = ["method", "garment", "motion", "body", "shape", "n_vertices", "n_frames", "eps_e", "eps_a", "eps_c", "eps_c_std",
@@ -121,9 +123,10 @@ def drape_ms_per_frame(timings_ms: dict, drape_s: float, n_frames: int) -> float
     return drape_s * 1e3 / n_frames
 
 
-def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict):
+def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir: Path | None = None):
     """Train, or load a checkpoint whose hash (method + training config + training data content + garment +
-    body + material) matches."""
+    body + material) matches. Training writes its per-step ``losses.csv`` into ``log_dir`` (passed to
+    ``fit`` as the train config's ``log_dir`` entry); a loaded checkpoint writes its saved one."""
     data_key = dataset_hash(train_cfg["dataset"]) if train_cfg.get("dataset") else None
     key = content_hash(OmegaConf.to_container(cfg.method, resolve=True), train_cfg, data_key, garment.vertices,
                        garment.faces, cfg.body.name, OmegaConf.to_container(cfg.material, resolve=True))  # fmt: skip
@@ -133,8 +136,10 @@ def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict):
         method.bind(data.body, data.material)
         method.load_state_dict(state["method"])
         log.info("loaded checkpoint %s (trained in %.1f s)", path.name, state["train_s"])
+        if log_dir is not None and state.get("history"):
+            write_losses(log_dir / "losses.csv", state["history"])
         return state["train_s"], str(path)
-    report = method.fit(data, train_cfg)
+    report = method.fit(data, train_cfg if log_dir is None else {**train_cfg, "log_dir": str(log_dir)})
     state = method.state_dict()
     if not state:
         return report.train_s, None
@@ -251,7 +256,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
 
     data = TrainData(body=body, material=material, garment=garment, load_train=load_train, test_sequences=[seq])
     t = time.perf_counter()
-    train_s, ckpt = _checkpoint(method, cfg, garment, data, train_cfg)
+    train_s, ckpt = _checkpoint(method, cfg, garment, data, train_cfg, log_dir=out)
     stages["fit_s"] = time.perf_counter() - t
 
     t = time.perf_counter()

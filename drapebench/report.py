@@ -145,6 +145,39 @@ def runtime_plot(df: pd.DataFrame, error: str, path: Path) -> Path:
     return path
 
 
+def loss_curve_plot(losses_csv: Path, path: Path | None = None) -> Path:
+    """Plot a run's ``losses.csv`` (drapebench.train): the loss and each term against the step, log y
+    (a term with values <= 0 is drawn as its absolute value, labelled |term|); written to ``path``
+    (default ``losses.png`` beside the csv). Returns the path."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    losses_csv = Path(losses_csv)
+    df = pd.read_csv(losses_csv)
+    if df.empty:
+        raise ValueError(f"{losses_csv} has no steps to plot")
+    path = Path(path) if path is not None else losses_csv.with_name("losses.png")
+    fig, ax = plt.subplots(figsize=(6, 3.8))
+    for col in [c for c in df.columns if c not in ("step", "epoch", "lr", "grad_norm")]:
+        y = df[col]
+        signed = bool((y <= 0).any())
+        ax.plot(df["step"], y.abs() if signed else y, label=f"|{col}|" if signed else col, lw=1.6 if col == "loss" else 0.9,
+                color="black" if col == "loss" else None)  # fmt: skip
+    ax.set_yscale("log")
+    ax.set_xlabel("step")
+    ax.set_ylabel("loss term (weighted)")
+    ax.set_title(f"training loss: {losses_csv.parent.name}", fontsize=9)
+    ax.legend(fontsize=7, ncol=2)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    with atomic_write(path, mode=None) as tmp:
+        fig.savefig(tmp, dpi=130, format="png")
+    plt.close(fig)
+    return path
+
+
 def write_table(dirs, name: str, out: Path, command: str | None = None) -> list[Path]:
     """Write ``out``.md/.tex/.csv and ``out``_runtime.png for table ``name``; returns the paths."""
     if name not in TABLES:
@@ -195,7 +228,12 @@ def main(argv=None) -> None:
     parser.add_argument("dirs", nargs="+", type=Path, help="run or sweep directories (searched for metrics.json)")
     parser.add_argument("--table", default="baseline", choices=sorted(TABLES))
     parser.add_argument("--out", type=Path, help="output path without suffix (default reports/<table>)")
+    parser.add_argument("--loss-curves", action="store_true", help="instead: losses.png beside every losses.csv in dirs")
     args = parser.parse_args(argv)
+    if args.loss_curves:
+        for csv in sorted(c for d in args.dirs for c in Path(d).rglob("losses.csv")):
+            print(loss_curve_plot(csv))
+        return
     for p in write_table(args.dirs, args.table, args.out or Path("reports") / args.table):
         print(p)
 

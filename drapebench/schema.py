@@ -55,10 +55,24 @@ class MaterialConf:
 
 @dataclass
 class TrainConf:
-    name: str = "cpu"
+    """The training budget of every learned method (drapebench.train); keys only one method reads live
+    in that method's config (e.g. conf/method/gaps_budget/)."""
+
+    name: str = "default"  # preset name (conf/train/<name>.yaml)
     dataset: str = "train_small"  # drapebench.body.dataset name
     seed: int = 0
-    params: Dict[str, Any] = field(default_factory=dict)  # method-specific training settings
+    epochs: int = 1000  # passes over the training items; ignored when steps is set
+    steps: Optional[int] = None  # optimizer steps (overrides epochs)
+    batch_size: int = 16
+    lr: float = 1e-3  # Adam learning rate (each parameter group scales it by its factor)
+    lr_after: Optional[float] = 1e-4  # the rate from epoch lr_switch_epoch on
+    lr_switch_epoch: Optional[int] = 10  # None: lr throughout
+    lr_decay_fraction: Optional[float] = None  # linear decay to 0 over this last fraction of the budget
+    grad_clip: Optional[float] = None  # scale each step's gradient to at most this global norm
+    ema_decay: Optional[float] = None  # use an exponential moving average of the weights as the model
+    max_minutes: Optional[float] = None  # time budget: stop with a warning and keep the best state
+    checkpoint_every: int = 200  # steps between resumable checkpoints
+    log_every: int = 10  # steps between progress-bar loss updates
 
 
 @dataclass

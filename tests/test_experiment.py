@@ -7,8 +7,10 @@ import sys
 from pathlib import Path
 
 import pytest
+import torch
 from hydra import compose, initialize_config_dir
 from hydra.errors import ConfigCompositionException
+from omegaconf import OmegaConf
 
 ROOT = Path(__file__).resolve().parents[1]
 FAST = ["body=anny_lowres", "motion.n_frames=10", "motion.transition=3"]
@@ -88,9 +90,56 @@ def test_every_experiment_config_composes():
 
 def test_default_training_is_the_cpu_budget_and_paper_is_opt_in():
     default = _compose(["method=gaps"]).train
-    assert default.name == "cpu" and default.params.max_minutes <= 10  # `python run.py method=gaps` ends on a CPU
+    assert default.name == "cpu" and default.max_minutes <= 10  # `python run.py method=gaps` ends on a CPU
     paper = _compose(["method=gaps", "train=paper"]).train
-    assert paper.params.epochs == 1000 and paper.params.max_minutes is None
+    assert paper.epochs == 1000 and paper.max_minutes is None
+
+
+def test_gaps_reads_its_own_training_keys_per_budget_and_a_wrong_train_key_fails():
+    cpu = _compose(["method=gaps"]).method.params.train
+    assert cpu.lr_output_factor == 0.02 and cpu.kext_ramp_epochs == 3 and cpu.window == 3  # conf/method/gaps_budget/cpu.yaml
+    for ablation in ("gaps_kext1", "gaps_no_inext", "snug_like", "ncs_like"):
+        paper = _compose([f"method={ablation}", "train=paper"]).method.params.train
+        assert paper.lr_output_factor == 1.0 and paper.kext_ramp_epochs == 100, ablation
+    with pytest.raises(ConfigCompositionException) as err:
+        _compose(["train.kext_ramp_epochs=3"])  # a GAPS key is not a budget key
+    assert "Key 'kext_ramp_epochs' not in 'TrainConf'" in str(err.value.__cause__)
+    with pytest.raises(ConfigCompositionException, match="Error merging override train.steps=many"):
+        _compose(["train.steps=many"])
+
+
+def test_training_writes_losses_csv_into_the_run_directory_and_a_loaded_checkpoint_too(tmp_path, monkeypatch):
+    from drapebench.experiment import _checkpoint
+    from methods.base import DrapingMethod, FitReport
+
+    monkeypatch.setenv("DRAPEBENCH_DATA", str(tmp_path / "data"))
+
+    class Learned(DrapingMethod):
+        fits = []
+
+        def fit(self, data, train_cfg=None):
+            self.fits.append(dict(train_cfg))
+            (Path(train_cfg["log_dir"]) / "losses.csv").write_text("step,loss\n1,0.5\n")
+            return FitReport(train_s=1.0, n_steps=1, history=[{"step": 1, "loss": 0.5}])
+
+        def drape(self, garment, seq):
+            raise NotImplementedError
+
+        def state_dict(self):
+            return {"w": torch.ones(2)}
+
+        def load_state_dict(self, state):
+            assert torch.equal(state["w"], torch.ones(2))
+
+    cfg = _compose(["method=lbs", "body=anny_lowres"])
+    garment = type("G", (), {"vertices": torch.zeros(3, 3), "faces": torch.zeros(1, 3, dtype=torch.long)})()
+    data = type("D", (), {"body": None, "material": None})()
+    train_cfg = {**OmegaConf.to_container(cfg.train, resolve=True), "dataset": None}
+    for run_dir in (tmp_path / "a", tmp_path / "b"):  # a rerun in a new run directory loads the checkpoint
+        run_dir.mkdir()
+        _checkpoint(Learned(), cfg, garment, data, train_cfg, log_dir=run_dir)
+        assert (run_dir / "losses.csv").read_text().splitlines() == ["step,loss", "1,0.5"]
+    assert len(Learned.fits) == 1 and Learned.fits[0]["log_dir"] == str(tmp_path / "a")
 
 
 def _fresh(extra=()):

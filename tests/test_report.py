@@ -91,3 +91,19 @@ def test_jobs_are_collected_in_job_order(tmp_path):
         f = tmp_path / f"{i}_lbs_{garment}" / "metrics.json"
         f.write_text(json.dumps({**json.loads(f.read_text()), "garment": garment}))
     assert list(collect([tmp_path])["garment"]) == ["tshirt", "skirt", "gown"]
+
+
+def test_loss_curve_plot_from_losses_csv(tmp_path):
+    from drapebench.report import loss_curve_plot, main
+
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "losses.csv").write_text("step,epoch,lr,loss,strain,gravity,grad_norm\n1,0,0.001,2.0,1.5,-0.5,3.0\n2,0,0.001,1.0,1.2,-0.2,2.0\n")
+    path = loss_curve_plot(run / "losses.csv")
+    assert path == run / "losses.png" and path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    path.unlink()
+    main([str(tmp_path), "--loss-curves"])
+    assert (run / "losses.png").exists()
+    (run / "losses.csv").write_text("step,loss\n")
+    with pytest.raises(ValueError, match="no steps"):
+        loss_curve_plot(run / "losses.csv")

@@ -2,7 +2,8 @@
 collision-aware inextensibility, self-supervised by physics losses; plus the SNUG-like and
 NCS-like ablations as configurations of the same code.
 
-Choices where the paper is silent or differs from the public code (all configurable in ``params``):
+Choices where the paper is silent or differs from the public code (all configurable in ``method.params``,
+its ``train`` sub-dict, or the training budget ``conf/train``; defaults in ``methods/gaps/config.py``):
 
 * input per frame = [betas (S), pose axis-angle of all joints incl. the root (3J), root translation
   velocity (3)], **not normalised** (the GAPS code; SNUG's shipped models normalise:
@@ -50,57 +51,21 @@ Choices where the paper is silent or differs from the public code (all configura
 
 from __future__ import annotations
 
-import logging
-import math
 import time
 
 import numpy as np
 import torch
 
 from drapebench.body.lbs import lbs
-from drapebench.cache import atomic_write, cache_dir, content_hash
-from drapebench.errors import TrainingDiverged
+from drapebench.cache import content_hash
 from drapebench.geometry.ops import vertex_normals
 from drapebench.geometry.proximity import culled_body_vertices, nearest_body_vertex
-from drapebench.physics import (
-    bending_energy,
-    collision_aware_kext,
-    collision_energy,
-    gravity_energy,
-    inertia_energy,
-    inextensibility_energy,
-    stvk_energy,
-)
-from drapebench.progress import progress
+from drapebench.train import Objective, train, train_config
 from methods.base import DrapeResult, DrapingMethod, FitReport
+from methods.gaps import losses
+from methods.gaps.config import gaps_params
+from methods.gaps.network import GapsNet
 from methods.gaps.skinning import nearest_indices, nearest_weights, rbf_weights, smoothed_weights
-
-METHOD_DEFAULTS = dict(
-    skinning="rbf",  # rbf | nearest | smoothed
-    rbf_k=0.25,
-    smooth_iterations=10,
-    trainable_weights=True,
-    shape_blendshape=False,  # SNUG: the garment copies the body's shape blend shape at the nearest vertex
-    inextensibility_weight=2e8,
-    kext="collision",  # collision | one
-    collision_weight=250.0,
-    collision_eps=2e-3,
-    bending="blend",  # blend | flat | template
-    single_shape=False,  # NCS: train on the mean body only
-    normalize_inputs=False,
-    hidden=256,
-    layers=4,
-    zero_init_output=True,
-    collision_postprocess=False,  # SNUG's push-out at inference; off unless a config asks for it
-)
-log = logging.getLogger("drapebench")
-
-CHOICES = dict(skinning=("rbf", "nearest", "smoothed"), kext=("collision", "one"), bending=("blend", "flat", "template"))
-TRAIN_DEFAULTS = dict(
-    epochs=1000, batch_size=16, window=3, lr=1e-3, lr_after=1e-4, lr_switch_epoch=10, lr_output_factor=1.0, kext_ramp_epochs=100,
-    hidden_init_std=0.1, beta_range=(0.5, 2.0, 2.0, 2.0), max_minutes=None, checkpoint_every=200, log_every=10,
-    ema_decay=None, lr_decay_fraction=None, grad_clip=None,
-)
 
 
 def root_velocity(seq) -> torch.Tensor:
@@ -118,33 +83,6 @@ def skin_then_translate(points: torch.Tensor, weights: torch.Tensor, transforms:
     return lbs(points, weights, local) + trans[..., None, :]
 
 
-def scheduled_lr(tp: dict, epoch: int, step_fraction: float, train_s: float) -> float:
-    """Learning rate of a step: ``lr`` before ``lr_switch_epoch``, then ``lr_after``; with ``lr_decay_fraction``
-    f it decays linearly to 0 over the last f of the budget: of the steps (``step_fraction`` done), or of
-    ``max_minutes`` when set (``train_s`` seconds trained so far, resumed runs included), whichever is further."""
-    lr = tp["lr"] if epoch < tp["lr_switch_epoch"] else tp["lr_after"]
-    if tp["lr_decay_fraction"]:
-        done = step_fraction if tp["max_minutes"] is None else max(step_fraction, train_s / (60.0 * tp["max_minutes"]))
-        lr *= min(1.0, max(0.0, 1.0 - done) / tp["lr_decay_fraction"])
-    return lr
-
-
-class GapsNet(torch.nn.Module):
-    """GRU regressor: (B, T, in) -> (B, T, V*3) canonical displacements; returns the new hidden state too."""
-
-    def __init__(self, n_in: int, n_out: int, hidden: int = 256, layers: int = 4, zero_init_output: bool = True):
-        super().__init__()
-        self.gru = torch.nn.GRU(n_in, hidden, num_layers=layers, batch_first=True)
-        self.out = torch.nn.Linear(hidden, n_out)
-        if zero_init_output:  # start from the skinned template instead of displacements of tens of cm
-            torch.nn.init.zeros_(self.out.weight)
-            torch.nn.init.zeros_(self.out.bias)
-
-    def forward(self, x: torch.Tensor, h0: torch.Tensor | None = None):
-        y, h = self.gru(x, h0)
-        return self.out(y), h
-
-
 class GAPS(DrapingMethod):
     """GAPS and its ablations (see the module docstring for every reading of the paper)."""
 
@@ -154,13 +92,7 @@ class GAPS(DrapingMethod):
 
     def __init__(self, cfg=None):
         super().__init__(cfg)
-        unknown = set(self.cfg) - set(METHOD_DEFAULTS)
-        if unknown:
-            raise ValueError(f"unknown gaps parameter(s) {sorted(unknown)}; valid: {sorted(METHOD_DEFAULTS)}")
-        self.p = {**METHOD_DEFAULTS, **self.cfg}
-        for key, choices in CHOICES.items():
-            if self.p[key] not in choices:
-                raise ValueError(f"gaps parameter {key} must be one of {', '.join(choices)}, not {self.p[key]!r}")
+        self.p = gaps_params(self.cfg)
         self.net = None
         self.weights = None
         self.template = None
@@ -212,137 +144,69 @@ class GAPS(DrapingMethod):
 
     # ------------------------------------------------------------------ training
     def fit(self, data, train_cfg=None) -> FitReport:
-        """Self-supervised training on ``data.train_sequences`` (see the module docstring)."""
+        """Self-supervised training on ``data.train_sequences`` with :func:`drapebench.train.train` under the
+        budget ``train_cfg`` (``conf/train``; its ``log_dir`` entry, if any, receives ``losses.csv``)."""
         self.bind(data.body, data.material)
-        tp = {**TRAIN_DEFAULTS, **dict((train_cfg or {}).get("params", {}))}
-        seed = int((train_cfg or {}).get("seed", 0))
-        torch.manual_seed(seed)  # before the network is created: initial weights follow the seed
+        train_cfg = dict(train_cfg or {})
+        log_dir = train_cfg.pop("log_dir", None)
+        budget = train_config(train_cfg)
+        tp = self.p["train"]
+        torch.manual_seed(budget.seed)  # before the network is created: initial weights follow the seed
         self._setup(data.garment)
-        unknown = set(tp) - set(TRAIN_DEFAULTS)
-        if unknown:
-            raise ValueError(f"unknown gaps training parameter(s) {sorted(unknown)}; valid: {sorted(TRAIN_DEFAULTS)}")
         if len(tp["beta_range"]) > self.body.n_betas:
-            raise ValueError(f"train.params.beta_range has {len(tp['beta_range'])} entries but the body has {self.body.n_betas} betas")
+            raise ValueError(f"method.params.train.beta_range has {len(tp['beta_range'])} entries but the body has {self.body.n_betas} betas")
         seqs = data.train_sequences
         if not seqs:
             raise ValueError("gaps needs training sequences (train.dataset)")
-        rng = np.random.default_rng(seed)
         W = tp["window"]
-        windows = [(i, t) for i, s in enumerate(seqs) for t in range(1, s.n_frames - W + 1)]
-        poses = [s.poses.to(self.body.dtype) for s in seqs]
-        vels = [root_velocity(s).to(self.body.dtype) for s in seqs]
-        trans = [s.trans.to(self.body.dtype) for s in seqs]
+        self._windows = [(i, t) for i, s in enumerate(seqs) for t in range(1, s.n_frames - W + 1)]
+        self._poses = [s.poses.to(self.body.dtype) for s in seqs]
+        self._vels = [root_velocity(s).to(self.body.dtype) for s in seqs]
+        self._trans = [s.trans.to(self.body.dtype) for s in seqs]
         if self.p["normalize_inputs"]:
-            allx = torch.cat([torch.cat([p.reshape(len(p), -1), v], -1) for p, v in zip(poses, vels)])
+            allx = torch.cat([torch.cat([p.reshape(len(p), -1), v], -1) for p, v in zip(self._poses, self._vels)])
             self.input_mean[self.body.n_betas :] = allx.mean(0)
             self.input_std[self.body.n_betas :] = allx.std(0).clamp_min(1e-3)
         body_params = list(self.net.gru.parameters()) + ([self.weights] if self.weights.requires_grad else [])
-        groups = [{"params": body_params, "factor": 1.0}, {"params": list(self.net.out.parameters()), "factor": tp["lr_output_factor"]}]
-        opt = torch.optim.Adam(groups, lr=tp["lr"])
-        steps_per_epoch = max(1, math.ceil(len(windows) / tp["batch_size"]))
-        total_steps = steps_per_epoch * int(tp["epochs"])
-        resume = cache_dir("checkpoints") / f"gaps_partial_{content_hash(self.p, tp, seed, self.garment_key, len(windows))}.pt"
-        step, history, t_prev, st = 0, [], 0.0, None
-        if resume.exists():
-            st = torch.load(resume, map_location="cpu", weights_only=False)
-            self.load_state_dict(st["method"])
-            opt.load_state_dict(st["opt"])
-            step, history, t_prev = st["step"], st["history"], st["train_s"]
-            rng = st["rng"]
-            torch.set_rng_state(st["torch_rng"])
-        trained = [p_ for g in groups for p_ in g["params"]]
-        ema = [p_.detach().clone() for p_ in trained] if tp["ema_decay"] else None
-        if ema is not None and st is not None and st.get("ema") is not None:
-            ema = st["ema"]
-        t0 = time.perf_counter()
-        deadline = None if tp["max_minutes"] is None else tp["max_minutes"] * 60 - t_prev
-        bar = progress(total=total_steps, initial=step, desc="gaps", unit="step")
-        order = rng.permutation(len(windows))
-        while step < total_steps:
-            epoch = step // steps_per_epoch
-            k = step % steps_per_epoch
-            if k == 0:
-                order = rng.permutation(len(windows))
-            lr = scheduled_lr(tp, epoch, step / total_steps, t_prev + time.perf_counter() - t0)
-            for g in opt.param_groups:
-                g["lr"] = g["factor"] * lr
-            batch = [windows[j] for j in order[k * tp["batch_size"] : (k + 1) * tp["batch_size"]]]
-            losses = self._train_step(batch, poses, vels, trans, seqs, epoch, tp, rng, opt)
-            step += 1
-            if ema is not None:  # Polyak averaging with TF's warm-up: decay min(d, (1 + n) / (10 + n))
-                with torch.no_grad():
-                    torch._foreach_lerp_(ema, [p_.detach() for p_ in trained], 1.0 - min(tp["ema_decay"], (1 + step) / (10 + step)))
-            history.append({"step": step, "epoch": epoch, "lr": lr, **losses})
-            if step % tp["log_every"] == 0:
-                bar.set_postfix({k_: f"{v:.3g}" for k_, v in losses.items()})
-            bar.update(1)
-            elapsed = time.perf_counter() - t0
-            if step % tp["checkpoint_every"] == 0 or step == total_steps:
-                with atomic_write(resume, mode=None) as tmp:
-                    torch.save({"method": self.state_dict(), "opt": opt.state_dict(), "step": step, "history": history,
-                                "train_s": t_prev + elapsed, "rng": rng, "torch_rng": torch.get_rng_state(), "ema": ema}, tmp)  # fmt: skip
-            if deadline is not None and elapsed > deadline and step < total_steps:
-                log.warning("gaps: max_minutes reached at step %d of %d; a time-cut run depends on machine speed "
-                            "(raise max_minutes or lower epochs for a deterministic result)", step, total_steps)
-                break
-        bar.close()
-        if ema is not None:  # the averaged weights are the model
-            with torch.no_grad():
-                torch._foreach_copy_(trained, ema)
-        resume.unlink(missing_ok=True)
-        return FitReport(train_s=t_prev + time.perf_counter() - t0, n_steps=step,
-                         final_losses=history[-1] if history else {}, history=history)  # fmt: skip
+        groups = [{"params": body_params, "lr_factor": 1.0}, {"params": list(self.net.out.parameters()), "lr_factor": tp["lr_output_factor"]}]
+        key = content_hash(self.p, budget, self.garment_key, dict(self.body.state_dict()), self.body.parents, data.material,
+                           [(s.betas, s.poses, s.trans, s.fps) for s in seqs])  # fmt: skip
+        objective = Objective("gaps", groups, len(self._windows), self._batch, self._loss_terms, key)
+        res = train(objective, budget, log_dir=log_dir)
+        return FitReport(train_s=res.train_s, n_steps=res.n_steps, final_losses=res.history[-1] if res.history else {},
+                         history=res.history, resumed_from=res.resumed_from)  # fmt: skip
 
-    def _train_step(self, batch, poses, vels, trans, seqs, epoch, tp, rng, opt) -> dict:
-        body, mat, p = self.body, self.material, self.p
-        B, W = len(batch), tp["window"]
+    def _batch(self, items: np.ndarray, at) -> tuple:
+        """Windows ``items`` of the training data: random body shapes (B, S), poses (B, W, J, 3), root
+        velocity (B, W, 3) and translation (B, W, 3), and the posed body (no gradient)."""
+        body, p, W = self.body, self.p, self.p["train"]["window"]
+        batch = [self._windows[j] for j in items]
+        B = len(batch)
         betas = torch.zeros(B, body.n_betas, dtype=body.dtype)
         if not p["single_shape"]:
-            r = np.asarray(tp["beta_range"], dtype=np.float64)
-            betas[:, : len(r)] = torch.as_tensor(rng.uniform(-r, r, (B, len(r))), dtype=body.dtype)
-        pose = torch.stack([poses[i][t : t + W] for i, t in batch])
-        vel = torch.stack([vels[i][t : t + W] for i, t in batch])
-        tr = torch.stack([trans[i][t : t + W] for i, t in batch])
+            r = np.asarray(p["train"]["beta_range"], dtype=np.float64)
+            betas[:, : len(r)] = torch.as_tensor(at.rng.uniform(-r, r, (B, len(r))), dtype=body.dtype)
+        pose = torch.stack([self._poses[i][t : t + W] for i, t in batch])
+        vel = torch.stack([self._vels[i][t : t + W] for i, t in batch])
+        tr = torch.stack([self._trans[i][t : t + W] for i, t in batch])
         with torch.no_grad():
             out = body.forward(betas.repeat_interleave(W, 0), pose.reshape(B * W, -1, 3), tr.reshape(B * W, 3))
             normals = vertex_normals(out.vertices, body.faces)
-        h0 = torch.randn(p["layers"], B, p["hidden"], dtype=body.dtype) * tp["hidden_init_std"]
+        return betas, pose, vel, tr, out, normals
+
+    def _loss_terms(self, batch: tuple, at) -> dict:
+        """The drape of a batch by the network (GRU state drawn from N(0, hidden_init_std^2)) and its loss terms."""
+        betas, pose, vel, tr, out, normals = batch
+        p, B, W = self.p, len(betas), self.p["train"]["window"]
+        h0 = torch.randn(p["layers"], B, p["hidden"], dtype=self.body.dtype) * p["train"]["hidden_init_std"]
         delta, _ = self.net(self._inputs(betas, pose, vel), h0)
         xc = self._canonical(delta, betas).reshape(B * W, -1, 3)
         x = skin_then_translate(xc, self.weights, out.transforms, tr.reshape(B * W, 3))  # (B*W, V, 3)
         nn = nearest_body_vertex(x, out.vertices, normals, self.candidates)
-        topo = self.topology
-        blend = self.bend_blend if p["bending"] == "blend" else None
-        rest_angle = "template" if p["bending"] == "template" else "flat"
-        terms = {
-            "strain": stvk_energy(x, topo, mat).sum() / B,
-            "bending": bending_energy(x, topo, mat, rest_angle=rest_angle, blend=blend).sum() / B,
-            "gravity": gravity_energy(x, topo, mat).sum() / B,
-            "collision": p["collision_weight"] * collision_energy(x, nn.point, nn.normal, p["collision_eps"]).sum() / B,
-        }
-        xw = x.reshape(B, W, -1, 3)
-        x1, x0 = xw[:, -2].detach(), xw[:, -3].detach()  # stop_gradient(2 x1 - x0), as the code
-        terms["inertia"] = inertia_energy(xw[:, -1], x1, (x1 - x0) / mat.dt, topo, mat).sum() / B
-        if p["inextensibility_weight"] > 0:
-            if p["kext"] == "collision":
-                k_ext = collision_aware_kext(nn.distance, epoch, p["collision_eps"], ramp_epochs=tp["kext_ramp_epochs"])
-            else:
-                k_ext = torch.ones(1, dtype=x.dtype)
+        terms, k_ext = losses.loss_terms(x, W, nn, self.topology, self.material, p, at.epoch, self.bend_blend)
+        if k_ext is not None:
             self.last_kext_max = float(k_ext.max())
-            terms["inext"] = p["inextensibility_weight"] * inextensibility_energy(x, topo, k_ext).sum() / B
-        loss = sum(terms.values())
-        if not torch.isfinite(loss):
-            raise TrainingDiverged(f"gaps: non-finite loss at epoch {epoch}: { {k: float(v) for k, v in terms.items()} }; "
-                                   "lower train.params.lr or the loss weights, or try another seed")
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        trained = [q for g in opt.param_groups for q in g["params"]]
-        grad_norm = torch.nn.utils.clip_grad_norm_(trained, tp["grad_clip"] or math.inf)  # the norm before clipping
-        if not torch.isfinite(grad_norm):  # a finite loss can still have a non-finite gradient: never step on it
-            raise TrainingDiverged(f"gaps: non-finite gradient at epoch {epoch} (loss {loss.item():.4g}); "
-                                   "lower train.params.lr or set train.params.grad_clip, or try another seed")
-        opt.step()
-        return {"loss": loss.item(), **{k: v.item() for k, v in terms.items()}, "grad_norm": grad_norm.item()}
+        return terms
 
     # ------------------------------------------------------------------ inference
     def drape(self, garment, seq) -> DrapeResult:
@@ -400,8 +264,10 @@ class GAPS(DrapingMethod):
     def load_state_dict(self, state) -> None:
         if not state:
             return
-        if state["params"] != self.p:
-            raise ValueError(f"gaps checkpoint was trained with {state['params']}, not {self.p}")
+        model = {k: v for k, v in self.p.items() if k != "train"}  # training settings do not change what is loaded
+        trained = {k: v for k, v in state["params"].items() if k != "train"}
+        if trained != model:
+            raise ValueError(f"gaps checkpoint was trained with {trained}, not {model}")
         if self.net is None:
             self.net = GapsNet(state["n_in"], state["n_out"], self.p["hidden"], self.p["layers"], self.p["zero_init_output"])
         self.net.load_state_dict(state["net"])

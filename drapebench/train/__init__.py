@@ -1,0 +1,7 @@
+"""Training of the learned methods: one loop (:func:`train`), its learning-rate schedule and checkpoints."""
+
+from drapebench.train.checkpoint import load_state, save_state, write_losses
+from drapebench.train.schedule import scheduled_lr
+from drapebench.train.trainer import Objective, Step, TrainResult, train, train_config
+
+__all__ = ["Objective", "Step", "TrainResult", "load_state", "save_state", "scheduled_lr", "train", "train_config", "write_losses"]

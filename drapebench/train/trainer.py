@@ -1,0 +1,192 @@
+"""The one training loop of every learned method.
+
+A method describes its training as an :class:`Objective` (parameter groups, a batch source, named and
+already-weighted loss terms, and a key naming the run); :func:`train` runs Adam on it under a
+:class:`drapebench.schema.TrainConf` budget: learning-rate schedule, optional gradient clipping and
+weight averaging (EMA), a guard that stops on a non-finite loss term or gradient, resumable atomic
+checkpoints, a time budget, a progress bar and ``losses.csv``.
+
+Best state: with a time budget, every checkpoint compares the mean training loss of the steps since
+the previous checkpoint with the lowest such mean so far and keeps a copy of the weights (the averaged
+ones with EMA) where it is lower; a run cut by the time budget ends with that best state. A run that
+completes its steps ends with its final state.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+import numpy as np
+import torch
+
+from drapebench.cache import cache_dir
+from drapebench.errors import TrainingDiverged
+from drapebench.progress import progress
+from drapebench.schema import TrainConf
+from drapebench.train.checkpoint import load_state, save_state, write_losses
+from drapebench.train.schedule import scheduled_lr
+
+log = logging.getLogger("drapebench")
+
+
+@dataclass
+class Step:
+    """Where the loop is: ``step`` (0-based, the step being computed), ``epoch``, and the run's numpy
+    generator ``rng`` (seeded by the train config; checkpointed), for random draws of a batch."""
+
+    step: int
+    epoch: int
+    rng: np.random.Generator
+
+
+@dataclass
+class Objective:
+    """What a learned method gives the trainer.
+
+    name: label of the progress bar, messages and checkpoint files.
+    param_groups: ``[{"params": [tensors], "lr_factor": f}, ...]``; each group learns at f x the scheduled rate.
+    n_items: training items (e.g. windows of frames) in one epoch; batches are shuffled indices into them.
+    batch: (item indices (b,), Step) -> a batch, whatever ``loss_terms`` takes.
+    loss_terms: (batch, Step) -> {term name: scalar tensor}, each term already weighted; the loss is their sum.
+    key: content hash of everything that determines the run (method and training settings, seed, garment,
+        body, material, data); resuming needs the same key.
+    """
+
+    name: str
+    param_groups: list[dict]
+    n_items: int
+    batch: Callable[[np.ndarray, Step], Any]
+    loss_terms: Callable[[Any, Step], dict[str, torch.Tensor]]
+    key: str
+
+
+@dataclass
+class TrainResult:
+    """train_s: training time in s (resumed runs included); n_steps: steps done; history: one record per
+    step (step, epoch, lr, loss, each term, grad_norm); stopped: "done" or "time"; resumed_from: the
+    checkpoint a resumed run started from."""
+
+    train_s: float
+    n_steps: int
+    history: list[dict] = field(default_factory=list)
+    stopped: str = "done"
+    resumed_from: str | None = None
+
+
+def train_config(cfg: Mapping[str, Any] | TrainConf | None) -> TrainConf:
+    """A :class:`TrainConf` from a train config mapping (``conf/train``), with ``log_dir`` and unknown keys
+    rejected by name; raises ValueError listing the valid keys."""
+    if isinstance(cfg, TrainConf):
+        return cfg
+    cfg = dict(cfg or {})
+    valid = [f.name for f in dataclasses.fields(TrainConf)]
+    unknown = sorted(set(cfg) - set(valid))
+    if unknown:
+        raise ValueError(f"unknown train parameter(s) {unknown}; valid: {valid}")
+    return TrainConf(**cfg)
+
+
+def _bad_terms(terms: dict[str, torch.Tensor]) -> list[str]:
+    return [k for k, v in terms.items() if not torch.isfinite(v).all()]
+
+
+def train(objective: Objective, cfg: Mapping[str, Any] | TrainConf | None, log_dir: str | Path | None = None,
+          checkpoint_dir: str | Path | None = None) -> TrainResult:  # fmt: skip
+    """Train ``objective`` under budget ``cfg`` (see the module docstring). Writes ``losses.csv`` into
+    ``log_dir`` when given, and a resumable checkpoint ``<name>_partial_<key>.pt`` into ``checkpoint_dir``
+    (default: the cache's ``checkpoints``) every ``checkpoint_every`` steps, removed when training ends.
+    Raises :class:`drapebench.errors.TrainingDiverged` naming the step and the loss term(s) on a
+    non-finite loss, and the step on a non-finite gradient (no step is taken on either)."""
+    cfg = train_config(cfg)
+    ob = objective
+    if ob.n_items < 1:
+        raise ValueError(f"{ob.name}: no training items (empty training data)")
+    steps_per_epoch = max(1, math.ceil(ob.n_items / cfg.batch_size))
+    total = int(cfg.steps) if cfg.steps is not None else steps_per_epoch * int(cfg.epochs)
+    opt = torch.optim.Adam([{"params": g["params"], "factor": g["lr_factor"]} for g in ob.param_groups], lr=cfg.lr)
+    params = [p for g in opt.param_groups for p in g["params"]]
+    path = Path(checkpoint_dir or cache_dir("checkpoints")) / f"{ob.name}_partial_{ob.key}.pt"
+    rng = np.random.default_rng(cfg.seed)
+    step, history, t_prev, best_loss, best, resumed = 0, [], 0.0, math.inf, None, None
+    ema = [p.detach().clone() for p in params] if cfg.ema_decay else None
+    state = load_state(path, ob.key)
+    if state is None:
+        order = rng.permutation(ob.n_items)  # one draw more than used: the seeds keep their shuffles of earlier versions
+    else:
+        with torch.no_grad():
+            torch._foreach_copy_(params, state["params"])
+        opt.load_state_dict(state["opt"])
+        step, history, t_prev, rng, order = state["step"], state["history"], state["train_s"], state["rng"], state["order"]
+        torch.set_rng_state(state["torch_rng"])
+        ema, best_loss, best = state["ema"], state["best_loss"], state["best"]
+        resumed = str(path)
+        log.info("%s: resuming from step %d of %d (%s)", ob.name, step, total, path)
+    t0 = time.perf_counter()
+    deadline = None if cfg.max_minutes is None else cfg.max_minutes * 60 - t_prev
+    bar = progress(total=total, initial=step, desc=ob.name, unit="step")
+    stopped, since_ckpt = "done", []
+    while step < total:
+        epoch, k = divmod(step, steps_per_epoch)
+        if k == 0:
+            order = rng.permutation(ob.n_items)
+        at = Step(step, epoch, rng)
+        lr = scheduled_lr(cfg, epoch, step / total, t_prev + time.perf_counter() - t0)
+        for g in opt.param_groups:
+            g["lr"] = g["factor"] * lr
+        batch = ob.batch(order[k * cfg.batch_size : (k + 1) * cfg.batch_size], at)
+        terms = ob.loss_terms(batch, at)
+        loss = sum(terms.values())
+        if not torch.isfinite(loss):
+            bad = _bad_terms(terms) or ["the sum of the terms"]
+            values = ", ".join(f"{n}={v.item():.4g}" for n, v in terms.items())
+            raise TrainingDiverged(f"{ob.name}: non-finite loss term {', '.join(bad)} at step {step} (epoch {epoch}; {values}); "
+                                   "lower train.lr or the loss weights, or try another seed")  # fmt: skip
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        grad_norm = torch.nn.utils.clip_grad_norm_(params, cfg.grad_clip or math.inf)  # the norm before clipping
+        if not torch.isfinite(grad_norm):  # a finite loss can still have a non-finite gradient: never step on it
+            raise TrainingDiverged(f"{ob.name}: non-finite gradient at step {step} (epoch {epoch}; loss {loss.item():.4g}); "
+                                   "lower train.lr or set train.grad_clip, or try another seed")  # fmt: skip
+        opt.step()
+        step += 1
+        if ema is not None:  # Polyak averaging with TF's warm-up: decay min(d, (1 + n) / (10 + n))
+            with torch.no_grad():
+                torch._foreach_lerp_(ema, [p.detach() for p in params], 1.0 - min(cfg.ema_decay, (1 + step) / (10 + step)))
+        history.append({"step": step, "epoch": epoch, "lr": lr, "loss": loss.item(), **{n: v.item() for n, v in terms.items()},
+                        "grad_norm": grad_norm.item()})  # fmt: skip
+        since_ckpt.append(history[-1]["loss"])
+        if step % cfg.log_every == 0:
+            bar.set_postfix({n: f"{v:.3g}" for n, v in history[-1].items() if n not in ("step", "epoch")})
+        bar.update(1)
+        elapsed = time.perf_counter() - t0
+        timed_out = deadline is not None and elapsed > deadline and step < total
+        if step % cfg.checkpoint_every == 0 or step == total or timed_out:
+            if cfg.max_minutes is not None and np.mean(since_ckpt) < best_loss:
+                best_loss, best = float(np.mean(since_ckpt)), [t.detach().clone() for t in (ema or params)]
+            since_ckpt = []
+            save_state(path, {"key": ob.key, "step": step, "history": history, "train_s": t_prev + elapsed, "params": params,
+                              "opt": opt.state_dict(), "rng": rng, "torch_rng": torch.get_rng_state(), "order": order,
+                              "ema": ema, "best_loss": best_loss, "best": best})  # fmt: skip
+            if log_dir is not None:
+                write_losses(Path(log_dir) / "losses.csv", history)
+        if timed_out:
+            log.warning("%s: max_minutes (%g) reached at step %d of %d; keeping the state of lowest mean training loss "
+                        "(%.4g); a time-cut run depends on machine speed (raise max_minutes or lower the steps for a "
+                        "deterministic result)", ob.name, cfg.max_minutes, step, total, best_loss)  # fmt: skip
+            stopped = "time"
+            break
+    bar.close()
+    with torch.no_grad():
+        final = best if stopped == "time" and best is not None else ema
+        if final is not None:  # the averaged (or best) weights are the model
+            torch._foreach_copy_(params, final)
+    if log_dir is not None:
+        write_losses(Path(log_dir) / "losses.csv", history)
+    path.unlink(missing_ok=True)
+    return TrainResult(t_prev + time.perf_counter() - t0, step, history, stopped, resumed)

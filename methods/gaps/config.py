@@ -1,0 +1,55 @@
+"""GAPS's settings and their defaults: the model (``METHOD_DEFAULTS``) and the training keys only GAPS
+reads (``TRAIN_DEFAULTS``, under ``method.params.train``; the budget itself is ``conf/train``).
+
+Training defaults are the paper's / public code's; ``conf/method/gaps_budget/<train preset>.yaml``
+gives the values a training preset needs (e.g. the CPU budget's k_ext ramp)."""
+
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+TRAIN_DEFAULTS = dict(
+    window=3,  # consecutive frames per training item
+    lr_output_factor=1.0,  # the output layer's learning rate relative to train.lr
+    kext_ramp_epochs=100,  # epochs over which k_ext rises to its cap (GAPS Eq. 16)
+    hidden_init_std=0.1,  # GRU state drawn from N(0, std^2) in training
+    beta_range=(0.5, 2.0, 2.0, 2.0),  # beta_k ~ U(-r_k, r_k) on the first len(beta_range) components
+)
+METHOD_DEFAULTS = dict(
+    skinning="rbf",  # rbf | nearest | smoothed
+    rbf_k=0.25,
+    smooth_iterations=10,
+    trainable_weights=True,
+    shape_blendshape=False,  # SNUG: the garment copies the body's shape blend shape at the nearest vertex
+    inextensibility_weight=2e8,
+    kext="collision",  # collision | one
+    collision_weight=250.0,
+    collision_eps=2e-3,
+    bending="blend",  # blend | flat | template
+    single_shape=False,  # NCS: train on the mean body only
+    normalize_inputs=False,
+    hidden=256,
+    layers=4,
+    zero_init_output=True,
+    collision_postprocess=False,  # SNUG's push-out at inference; off unless a config asks for it
+    train=TRAIN_DEFAULTS,
+)
+CHOICES = dict(skinning=("rbf", "nearest", "smoothed"), kext=("collision", "one"), bending=("blend", "flat", "template"))
+
+
+def gaps_params(cfg: Mapping[str, Any] | None) -> dict:
+    """GAPS's parameters: the defaults updated by ``cfg`` (``method.params``; its ``train`` sub-dict
+    updates ``TRAIN_DEFAULTS``). Raises ValueError naming an unknown key or an invalid choice."""
+    cfg = dict(cfg or {})
+    unknown = set(cfg) - set(METHOD_DEFAULTS)
+    if unknown:
+        raise ValueError(f"unknown gaps parameter(s) {sorted(unknown)}; valid: {sorted(METHOD_DEFAULTS)}")
+    tp = dict(cfg.pop("train", None) or {})
+    unknown = set(tp) - set(TRAIN_DEFAULTS)
+    if unknown:
+        raise ValueError(f"unknown gaps training parameter(s) {sorted(unknown)} (method.params.train); valid: {sorted(TRAIN_DEFAULTS)}")
+    p = {**METHOD_DEFAULTS, **cfg, "train": {**TRAIN_DEFAULTS, **tp}}
+    for key, choices in CHOICES.items():
+        if p[key] not in choices:
+            raise ValueError(f"gaps parameter {key} must be one of {', '.join(choices)}, not {p[key]!r}")
+    return p

@@ -1,0 +1,81 @@
+"""GAPS's loss terms: each is a :mod:`drapebench.physics` energy times its weight, summed over the
+batch's frames and divided by the batch size B (as the GAPS code).
+
+Shapes: x (B*W, V, 3) draped vertices of B windows of W frames (m); ``nn`` the nearest body vertex of
+each (:class:`drapebench.geometry.proximity.NearestVertex`, (B*W, V) fields). Every function returns
+a scalar tensor (J, or the energy's unit times its weight).
+"""
+
+from __future__ import annotations
+
+import torch
+
+from drapebench.physics import (
+    bending_energy,
+    collision_aware_kext,
+    collision_energy,
+    gravity_energy,
+    inertia_energy,
+    inextensibility_energy,
+    stvk_energy,
+)
+
+
+def strain(x: torch.Tensor, topo, material, batch_size: int) -> torch.Tensor:
+    """StVK membrane energy (J) per window."""
+    return stvk_energy(x, topo, material).sum() / batch_size
+
+
+def bending(x: torch.Tensor, topo, material, batch_size: int, mode: str = "blend", blend: torch.Tensor | None = None) -> torch.Tensor:
+    """Bending energy (J) per window against flat (``mode`` "flat"), template ("template") or, for "blend",
+    rest angles blended per hinge edge by ``blend`` (E,) in [0, 1] (GAPS Eq. 12)."""
+    rest_angle = "template" if mode == "template" else "flat"
+    return bending_energy(x, topo, material, rest_angle=rest_angle, blend=blend if mode == "blend" else None).sum() / batch_size
+
+
+def gravity(x: torch.Tensor, topo, material, batch_size: int) -> torch.Tensor:
+    """Gravitational potential energy (J) per window."""
+    return gravity_energy(x, topo, material).sum() / batch_size
+
+
+def collision(x: torch.Tensor, nn, batch_size: int, weight: float, eps: float) -> torch.Tensor:
+    """weight x cubic collision penalty (m^3) per window against the nearest body vertex, margin ``eps`` m."""
+    return weight * collision_energy(x, nn.point, nn.normal, eps).sum() / batch_size
+
+
+def inertia(xw: torch.Tensor, topo, material) -> torch.Tensor:
+    """Inertia (J) of the last frame of each window xw (B, W, V, 3) against stop_gradient(2 x1 - x0) of
+    the two frames before it (no gradient reaches the earlier frames), per window."""
+    x1, x0 = xw[:, -2].detach(), xw[:, -3].detach()
+    return inertia_energy(xw[:, -1], x1, (x1 - x0) / material.dt, topo, material).sum() / xw.shape[0]
+
+
+def extension_factor(distance: torch.Tensor, epoch: int, mode: str, eps: float, ramp_epochs: int) -> torch.Tensor:
+    """k_ext per vertex (B*W, V) from the signed body distance (m): GAPS Eq. 16 for ``mode`` "collision",
+    1 everywhere for "one" (a (1,) tensor)."""
+    if mode == "collision":
+        return collision_aware_kext(distance, epoch, eps, ramp_epochs=ramp_epochs)
+    return torch.ones(1, dtype=distance.dtype, device=distance.device)
+
+
+def inextensibility(x: torch.Tensor, topo, k_ext: torch.Tensor, batch_size: int, weight: float) -> torch.Tensor:
+    """weight x collision-aware inextensibility energy (m^6) per window with extension factor ``k_ext``."""
+    return weight * inextensibility_energy(x, topo, k_ext).sum() / batch_size
+
+
+def loss_terms(x: torch.Tensor, window: int, nn, topo, material, p: dict, epoch: int, blend: torch.Tensor) -> tuple[dict, torch.Tensor | None]:
+    """GAPS's named, weighted loss terms of one batch x (B*W, V, 3) under parameters ``p``
+    (:func:`methods.gaps.config.gaps_params`) at ``epoch``; also k_ext (None without inextensibility)."""
+    B = x.shape[0] // window
+    terms = {
+        "strain": strain(x, topo, material, B),
+        "bending": bending(x, topo, material, B, p["bending"], blend),
+        "gravity": gravity(x, topo, material, B),
+        "collision": collision(x, nn, B, p["collision_weight"], p["collision_eps"]),
+        "inertia": inertia(x.reshape(B, window, *x.shape[1:]), topo, material),
+    }
+    k_ext = None
+    if p["inextensibility_weight"] > 0:
+        k_ext = extension_factor(nn.distance, epoch, p["kext"], p["collision_eps"], p["train"]["kext_ramp_epochs"])
+        terms["inext"] = inextensibility(x, topo, k_ext, B, p["inextensibility_weight"])
+    return terms, k_ext

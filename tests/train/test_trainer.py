@@ -1,0 +1,128 @@
+"""The trainer on a toy objective: the NaN/Inf guard, resume after an interruption (in process and a
+real kill -9), the time budget and its best state, losses.csv, the learning-rate schedule."""
+
+import csv
+import json
+import logging
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import torch
+
+from drapebench.errors import TrainingDiverged
+from drapebench.schema import TrainConf
+from drapebench.train import scheduled_lr, train, train_config
+from tests.train.toy import BUDGET, toy
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _run(tmp_path, budget=BUDGET, **kw):
+    objective, params = toy(**kw)
+    return train(objective, budget, log_dir=tmp_path, checkpoint_dir=tmp_path / "ckpt"), params
+
+
+def test_a_nan_in_one_term_stops_training_naming_the_term_and_the_step(tmp_path):
+    objective, params = toy(nan_at=("reg", 5))
+    seen = []
+    inner = objective.loss_terms
+    objective.loss_terms = lambda b, at: seen.append([p.detach().clone() for p in params]) or inner(b, at)
+    with pytest.raises(TrainingDiverged, match=r"non-finite loss term reg at step 5 \(epoch 1; fit=.*reg=nan"):
+        train(objective, BUDGET, checkpoint_dir=tmp_path)
+    assert all(torch.equal(a, b) for a, b in zip(seen[-1], params))  # no step was taken on it
+
+
+def test_a_non_finite_gradient_stops_before_the_step(tmp_path):
+    objective, (w, v) = toy()
+    objective.loss_terms = lambda b, at: {"root": w.abs().sqrt().sum()}  # finite (0) at w = 0, infinite slope
+    with pytest.raises(TrainingDiverged, match="non-finite gradient at step 0"):
+        train(objective, BUDGET, checkpoint_dir=tmp_path)
+    assert torch.count_nonzero(w) == 0
+
+
+def test_losses_csv_has_a_row_per_step_with_each_term(tmp_path):
+    res, _ = _run(tmp_path)
+    rows = list(csv.DictReader((tmp_path / "losses.csv").open()))
+    assert len(rows) == res.n_steps == BUDGET["steps"] and res.stopped == "done"
+    assert list(rows[0]) == ["step", "epoch", "lr", "loss", "fit", "reg", "grad_norm"]
+    assert [int(r["step"]) for r in rows] == list(range(1, BUDGET["steps"] + 1))
+    for r, h in zip(rows, res.history):
+        assert float(r["loss"]) == pytest.approx(float(r["fit"]) + float(r["reg"]), rel=1e-6)
+        assert float(r["grad_norm"]) == h["grad_norm"] and int(r["epoch"]) == h["epoch"]
+    assert {float(r["lr"]) for r in rows} == {0.05, 0.01}  # the switch at epoch 2 (3 steps of 4 items an epoch)
+    assert not list((tmp_path / "ckpt").glob("*.pt"))  # the resumable state is removed when training ends
+
+
+def test_an_interrupted_run_resumes_from_its_checkpoint_and_ends_where_an_uninterrupted_run_ends(tmp_path):
+    whole, params = _run(tmp_path / "a")
+    with pytest.raises(KeyboardInterrupt):
+        _run(tmp_path / "b", interrupt_at=7)
+    assert [r["step"] for r in csv.DictReader((tmp_path / "b" / "losses.csv").open())] == ["1", "2", "3", "4", "5", "6"]
+    resumed, params_b = _run(tmp_path / "b")
+    assert resumed.resumed_from is not None and resumed.history == whole.history  # RNG draws and optimizer state resumed
+    assert all(torch.equal(a, b) for a, b in zip(params, params_b))
+    other, _ = _run(tmp_path / "b", key="another run")  # a run with another key starts afresh
+    assert other.resumed_from is None
+
+
+def test_an_unreadable_checkpoint_is_not_loaded(tmp_path, caplog):
+    with pytest.raises(KeyboardInterrupt):
+        _run(tmp_path, interrupt_at=4)
+    (ckpt,) = (tmp_path / "ckpt").glob("toy_partial_*.pt")
+    ckpt.write_bytes(ckpt.read_bytes()[:100])  # truncated
+    with caplog.at_level(logging.WARNING, logger="drapebench"):
+        res, _ = _run(tmp_path)
+    assert res.resumed_from is None and res.n_steps == BUDGET["steps"] and "unreadable" in caplog.text
+
+
+def test_kill_9_mid_training_then_the_same_command_continues(tmp_path):
+    ckpt, out = tmp_path / "ckpt", tmp_path / "out.json"
+    cmd = [sys.executable, "-m", "tests.train.toy", str(ckpt), str(tmp_path), str(out)]
+    env = dict(os.environ, DRAPEBENCH_PROGRESS="0")
+    proc = subprocess.Popen(cmd, cwd=ROOT, env=env)
+    t0 = time.time()
+    while not list(ckpt.glob("*.pt")) and time.time() - t0 < 60:  # the first checkpoint (step 3 of 40, 50 ms a step)
+        time.sleep(0.02)
+    os.kill(proc.pid, signal.SIGKILL)
+    assert proc.wait() == -signal.SIGKILL and not out.exists()
+    subprocess.run(cmd, cwd=ROOT, env=env, check=True, timeout=120)
+    got = json.loads(out.read_text())
+    whole, params = _run(tmp_path / "whole", sleep_s=0.0)
+    assert got["resumed_from"] is not None and got["history"] == whole.history
+    assert got["params"] == [p.tolist() for p in params]
+
+
+def test_the_time_budget_stops_with_a_warning_and_keeps_the_state_of_lowest_training_loss(tmp_path, caplog):
+    budget = {**BUDGET, "steps": 50, "checkpoint_every": 1, "ema_decay": None, "max_minutes": 1.0 / 60}
+    objective, (w, v) = toy(sleep_s=0.4, slow_from=2, jump_at=2)  # the loss jumps 100x from step 2: earlier is best
+    at_step = []
+    inner = objective.loss_terms
+    objective.loss_terms = lambda b, at: at_step.append(w.detach().clone()) or inner(b, at)
+    with caplog.at_level(logging.WARNING, logger="drapebench"):
+        res = train(objective, budget, log_dir=tmp_path, checkpoint_dir=tmp_path)
+    assert res.stopped == "time" and 3 <= res.n_steps < 50 and "max_minutes" in caplog.text
+    losses = [h["loss"] for h in res.history]
+    best = losses.index(min(losses))
+    assert best < 2 and torch.equal(w, at_step[best + 1])  # before the jump; the weights after that step
+    assert not torch.equal(w, at_step[-1])
+
+
+def test_lr_decays_over_the_step_or_the_time_budget_whichever_is_further():
+    tp = TrainConf(lr=1e-3, lr_after=1e-4, lr_switch_epoch=2, lr_decay_fraction=0.5, max_minutes=None)
+    assert scheduled_lr(tp, 0, 0.25, 1e6) == pytest.approx(1e-3)  # no time budget: the time is ignored
+    assert scheduled_lr(tp, 0, 0.75, 0.0) == pytest.approx(0.5e-3) and scheduled_lr(tp, 0, 1.0, 0.0) == 0.0
+    assert scheduled_lr(tp, 2, 0.5, 0.0) == pytest.approx(1e-4)  # after the switch epoch
+    timed = TrainConf(lr=1e-3, lr_after=1e-4, lr_switch_epoch=2, lr_decay_fraction=0.5, max_minutes=10.0)
+    assert scheduled_lr(timed, 0, 0.25, 450.0) == pytest.approx(0.5e-3)  # 75 % of 10 min: halfway down
+    assert scheduled_lr(timed, 0, 0.25, 700.0) == 0.0  # past the time budget: never negative
+    assert scheduled_lr(TrainConf(lr=1e-3, lr_switch_epoch=None), 50, 0.9, 0.0) == pytest.approx(1e-3)
+
+
+def test_an_unknown_train_key_is_named():
+    with pytest.raises(ValueError, match=r"unknown train parameter\(s\) \['window'\]; valid: \[.*'epochs'"):
+        train_config({"epochs": 2, "window": 3})
