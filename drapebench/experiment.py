@@ -183,10 +183,10 @@ def run(cfg: DictConfig, out_dir: str | Path | None = None) -> dict:
 
 def _run(cfg: DictConfig, out: Path) -> dict:
     from drapebench.body import load_body, make_sequence
-    from drapebench.body.dataset import build_dataset, load_dataset
+    from drapebench.body.dataset import build_dataset
+    from drapebench.data import H5Sequences, TrainData
     from drapebench.garments import make_garment
     from drapebench.physics import Material
-    from drapebench.store import TrainData
 
     t_start = time.perf_counter()
     viz = getattr(cfg.viz, "name", cfg.viz)  # a VizMode member once validated by the schema
@@ -217,7 +217,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     train_cfg = OmegaConf.to_container(cfg.train, resolve=True)
 
     def load_train():
-        return load_dataset(build_dataset(cfg.train.dataset, force=cfg.force))
+        return H5Sequences(build_dataset(cfg.train.dataset, force=cfg.force))
 
     data = TrainData(body=body, material=material, garment=garment, load_train=load_train, test_sequences=[seq])
     t = time.perf_counter()

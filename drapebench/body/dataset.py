@@ -136,14 +136,19 @@ def build_dataset(name_or_spec, force: bool = False, path: Path | None = None) -
     return path
 
 
+def check_complete(f: h5py.File) -> None:
+    """Raise ValueError unless the open dataset file ``f`` was written to the end (its ``complete`` flag)."""
+    if not f.attrs.get("complete", False):
+        raise ValueError(f"{f.filename} is incomplete; rebuild it with `python -m drapebench.body.dataset <name> --force`")
+
+
 def load_dataset(name_or_path) -> list[BodySequence]:
     """Sequences of a dataset, by name (built if needed) or by file path."""
     path = Path(name_or_path)
     if path.suffix != ".h5":
         path = build_dataset(str(name_or_path))
     with h5py.File(path, "r") as f:
-        if not f.attrs.get("complete", False):
-            raise ValueError(f"{path} is incomplete; rebuild it with `python -m drapebench.body.dataset <name> --force`")
+        check_complete(f)
         return [BodySequence.read_h5(f[k]) for k in sorted(f.keys())]
 
 
