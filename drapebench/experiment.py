@@ -11,10 +11,7 @@ from __future__ import annotations
 import json
 import logging
 import os
-import platform
-import subprocess
 import time
-from importlib import metadata
 from pathlib import Path
 
 import numpy as np
@@ -25,37 +22,10 @@ from omegaconf import DictConfig, OmegaConf
 from drapebench.body.dataset import dataset_hash
 from drapebench.cache import PROJECT_ROOT, atomic_write, cache_dir, content_hash, file_checksum, write_json
 from drapebench.errors import DrapeFailed
+from drapebench.results import environment, git_commit, write_prediction
 from drapebench.train.checkpoint import write_losses
 
 log = logging.getLogger("drapebench")
-SUMMARY_COLUMNS = ["method", "garment", "motion", "body", "shape", "n_vertices", "n_frames", "eps_e", "eps_a", "eps_c", "eps_c_std",
-                   "edge_mm", "smoothness", "penetration_mm", "jitter", "vertex_error_mm", "ms_per_frame", "train_s"]  # fmt: skip
-
-
-def git_commit() -> str:
-    """HEAD commit of the project (with ``-dirty`` if the tree has changes), or ``unknown``."""
-    try:
-        sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=PROJECT_ROOT, capture_output=True, text=True, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=PROJECT_ROOT,
-                               capture_output=True, text=True, check=True).stdout.strip()  # fmt: skip
-        return sha + ("-dirty" if dirty else "")
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-
-
-def environment(device: str) -> dict:
-    """What produced a result: commit, package versions, device, threads, machine."""
-    versions = {}
-    for pkg in ("torch", "numpy", "scipy", "hydra-core", "rerun-sdk", "pandas", "trimesh", "h5py", "drapebench"):
-        try:
-            versions[pkg] = metadata.version(pkg)
-        except metadata.PackageNotFoundError:
-            versions[pkg] = None
-    return {
-        "commit": git_commit(), "versions": versions, "device": device, "torch_threads": torch.get_num_threads(),
-        "python": platform.python_version(), "machine": platform.machine(), "processor": platform.processor(),
-        "node": platform.node(), "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None,
-    }  # fmt: skip
 
 
 def shape_label(betas) -> str:
@@ -218,10 +188,10 @@ def run(cfg: DictConfig, out_dir: str | Path | None = None) -> dict:
 
 def _run(cfg: DictConfig, out: Path) -> dict:
     from drapebench.body import load_body, make_sequence
-    from drapebench.body.dataset import build_dataset, load_dataset
+    from drapebench.body.dataset import build_dataset
+    from drapebench.data import H5Sequences, TrainData
     from drapebench.garments import make_garment
     from drapebench.physics import Material
-    from drapebench.store import TrainData, write_prediction
 
     t_start = time.perf_counter()
     viz = getattr(cfg.viz, "name", cfg.viz)  # a VizMode member once validated by the schema
@@ -252,7 +222,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     train_cfg = OmegaConf.to_container(cfg.train, resolve=True)
 
     def load_train():
-        return load_dataset(build_dataset(cfg.train.dataset, force=cfg.force))
+        return H5Sequences(build_dataset(cfg.train.dataset, force=cfg.force))
 
     data = TrainData(body=body, material=material, garment=garment, load_train=load_train, test_sequences=[seq])
     t = time.perf_counter()

@@ -20,6 +20,7 @@ from pathlib import Path
 import pandas as pd
 
 from drapebench.cache import atomic_write
+from drapebench.results import SUMMARY_COLUMNS
 
 # table name -> (metrics shown, metric drawn against runtime, what the column groups are)
 TABLES = {
@@ -204,8 +205,6 @@ def write_table(dirs, name: str, out: Path, command: str | None = None) -> list[
 def write_summary(sweep_dir: Path) -> Path:
     """``summary.md`` and ``summary.csv`` at a sweep root: one row per finished job, and per failed one
     (``status`` "failed" with its message) when any was recorded with ``on_failure=record``."""
-    from drapebench.experiment import SUMMARY_COLUMNS
-
     failed = collect_failures([sweep_dir])
     try:
         df = collect([sweep_dir])

@@ -66,7 +66,7 @@ class DrapingMethod(ABC):
 
     @abstractmethod
     def fit(self, data, train_cfg: Mapping[str, Any] | None = None) -> FitReport:
-        """Train on ``data`` (a :class:`drapebench.store.TrainData`); returns a :class:`FitReport`."""
+        """Train on ``data`` (a :class:`drapebench.data.TrainData`); returns a :class:`FitReport`."""
 
     @abstractmethod
     def drape(self, garment, seq) -> DrapeResult:

@@ -4,7 +4,9 @@
 the names). A complete file whose stored spec hash (spec + motion generator version) matches is
 reused; a missing, incomplete, corrupt or outdated file is rebuilt. Held-out motion kinds (``kick``
 and ``stress`` never appear in training sets) give a split by motion; disjoint per-sequence seeds
-(drawn from each spec's own ``seed``) give a split within a motion.
+(drawn from each spec's own ``seed``) give a split within a motion. ``train_random_small`` and
+``train_random`` hold procedural random motion (``motion=random``) with random body shapes, as many
+sequences and frames as ``train_small`` and ``train``.
 """
 
 from __future__ import annotations
@@ -17,14 +19,15 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from drapebench.body.motions import MOTION_VERSION, MOTIONS, split_motions
+from drapebench.body.motions import MOTION_VERSION, MOTIONS, NAMED_MOTIONS, split_motions
 from drapebench.body.sequence import DEFAULT_TRANSITION, BodySequence, make_sequence
 from drapebench.cache import atomic_write, content_hash, data_dir
 from drapebench.progress import progress
 
 # Split by motion kind: kick and stress never appear in training sets; static (a held pose) is in neither.
+# TRAIN_MOTIONS are the named training motions; the train_random* sets hold motion=random instead.
 HELD_OUT_MOTIONS = ("kick", "stress")
-TRAIN_MOTIONS = split_motions(held_out=(*HELD_OUT_MOTIONS, "static"))[0]
+TRAIN_MOTIONS = split_motions(held_out=(*HELD_OUT_MOTIONS, "static"), motions=NAMED_MOTIONS)[0]
 
 
 @dataclass(frozen=True)
@@ -59,6 +62,8 @@ class DatasetSpec:
 DATASETS: dict[str, DatasetSpec] = {
     "train_small": DatasetSpec(TRAIN_MOTIONS, per_motion=2, n_frames=90, split="train", seed=0),
     "train": DatasetSpec(TRAIN_MOTIONS, per_motion=8, n_frames=150, split="train", seed=0),
+    "train_random_small": DatasetSpec(("random",), per_motion=14, n_frames=90, split="train", seed=30000),
+    "train_random": DatasetSpec(("random",), per_motion=56, n_frames=150, split="train", seed=30000),
     "val": DatasetSpec(TRAIN_MOTIONS, per_motion=1, n_frames=120, split="val", seed=5000),
     "test": DatasetSpec(("walk", "run", "jump", "dance") + HELD_OUT_MOTIONS[:1], per_motion=1, n_frames=120, split="test", seed=10000),
     "test_heldout": DatasetSpec(HELD_OUT_MOTIONS, per_motion=2, n_frames=120, split="test", seed=20000),
@@ -131,14 +136,19 @@ def build_dataset(name_or_spec, force: bool = False, path: Path | None = None) -
     return path
 
 
+def check_complete(f: h5py.File) -> None:
+    """Raise ValueError unless the open dataset file ``f`` was written to the end (its ``complete`` flag)."""
+    if not f.attrs.get("complete", False):
+        raise ValueError(f"{f.filename} is incomplete; rebuild it with `python -m drapebench.body.dataset <name> --force`")
+
+
 def load_dataset(name_or_path) -> list[BodySequence]:
     """Sequences of a dataset, by name (built if needed) or by file path."""
     path = Path(name_or_path)
     if path.suffix != ".h5":
         path = build_dataset(str(name_or_path))
     with h5py.File(path, "r") as f:
-        if not f.attrs.get("complete", False):
-            raise ValueError(f"{path} is incomplete; rebuild it with `python -m drapebench.body.dataset <name> --force`")
+        check_complete(f)
         return [BodySequence.read_h5(f[k]) for k in sorted(f.keys())]
 
 
@@ -150,7 +160,7 @@ def main(argv=None) -> None:
     args = parser.parse_args(argv)
     if args.list or not args.names:
         for name, spec in DATASETS.items():
-            print(f"{name:14s} {len(spec.motions) * spec.per_motion:4d} sequences x {spec.n_frames} frames  {', '.join(spec.motions)}")
+            print(f"{name:20s} {len(spec.motions) * spec.per_motion:4d} sequences x {spec.n_frames} frames  {', '.join(spec.motions)}")
         return
     for name in args.names:
         _, spec = _resolve(name)

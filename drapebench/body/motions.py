@@ -5,7 +5,9 @@ root translation have bounded finite-difference acceleration. Motions are design
 :data:`drapebench.body.limits.JOINT_LIMITS`; a smooth soft limit (identity inside the range,
 exponential approach within 5 % of either end) guarantees they never leave it. Random motions
 (``dance``, ``stress``) cap each joint axis's angular acceleration (``max_acc``, rad/s^2) by slowing
-their sinusoids. A sequence may begin with a transition: a C2 envelope (quintic smoothstep) scales
+their sinusoids. ``random`` (:mod:`drapebench.body.random_motion`, the training distribution) draws
+every joint, the heading and the walking speed at random, capping angular velocity and acceleration;
+the named motions are the held-out test motions. A sequence may begin with a transition: a C2 envelope (quintic smoothstep) scales
 the whole motion from the rest pose (``pose = 0``, ``trans = 0``) to full amplitude, so velocity and
 acceleration stay continuous.
 
@@ -30,9 +32,12 @@ import torch
 from drapebench.body.bake import JOINT_NAMES
 from drapebench.body.lbs import lbs
 from drapebench.body.limits import JOINT_LIMITS
+from drapebench.body.random_motion import random_motion
 
-MOTIONS = ("walk", "run", "jump", "arm_raise", "squat", "twist", "kick", "dance", "static", "stress")
+NAMED_MOTIONS = ("walk", "run", "jump", "arm_raise", "squat", "twist", "kick", "dance", "static", "stress")
+MOTIONS = (*NAMED_MOTIONS, "random")  # random: drapebench.body.random_motion
 MOTION_VERSION = 3  # bump when generated poses change (part of dataset content hashes)
+SOFT_MARGIN = 0.05  # fraction of a joint range at either end where soft_limit bends towards the limit
 GROUND_SOFTNESS = 0.01  # metres; soft-min temperature of the foot-contact height
 J = {name: i for i, name in enumerate(JOINT_NAMES)}
 X, Y, Z = 0, 1, 2
@@ -46,7 +51,7 @@ def smoothstep(u: np.ndarray) -> np.ndarray:
     return u * u * u * (u * (6.0 * u - 15.0) + 10.0)
 
 
-def soft_limit(x: np.ndarray, lo: np.ndarray, hi: np.ndarray, margin: float = 0.05) -> np.ndarray:
+def soft_limit(x: np.ndarray, lo: np.ndarray, hi: np.ndarray, margin: float = SOFT_MARGIN) -> np.ndarray:
     """Identity inside ``[lo + d, hi - d]`` (d = margin x range), C1 exponential approach beyond; never leaves [lo, hi]."""
     d = margin * (hi - lo)
     a, b = lo + d, hi - d
@@ -227,6 +232,11 @@ def _stress(m, t, rng, a, f, max_acc):
     m.velocity[:, 0] = 1.0 * a * np.sin(2 * np.pi * 0.5 * f * t)
 
 
+def _random(m, t, rng, p):
+    """Random joint trajectories inside the soft-limit band (soft_limit leaves them unchanged) and random root travel."""
+    m.pose[:], m.velocity[:] = random_motion(t, rng, margin=SOFT_MARGIN, **p)
+
+
 # name -> (builder, default parameters). ``amplitude`` scales angles, ``cadence`` is the cycle frequency (Hz).
 _SPECS = {
     "walk": (lambda m, t, r, p: _walk_like(m, t, r, p["amplitude"], p["cadence"], p["speed"], False),
@@ -246,6 +256,7 @@ _SPECS = {
     "static": (lambda m, t, r, p: _static(m, t, r, p["amplitude"]), dict(amplitude=1.0)),
     "stress": (lambda m, t, r, p: _stress(m, t, r, p["amplitude"], p["cadence"], p["max_acc"]),
                dict(amplitude=1.0, cadence=2.0, max_acc=80.0)),
+    "random": (_random, dict(amplitude=1.0, cadence=0.5, max_vel=4.0, max_acc=30.0, speed=1.2, turn=2.35)),
 }  # fmt: skip
 # Motions with a designed vertical root motion (flight; stress flails its legs and floats); the others are grounded.
 UNGROUNDED_MOTIONS = ("run", "jump", "stress")

@@ -91,3 +91,13 @@ def test_registry_splits_by_motion_kind_and_seed():
             other_seeds |= seeds
     assert held_out <= {m for spec in DATASETS.values() if spec.split == "test" for m in spec.motions}
     assert not train_seeds & other_seeds
+
+
+def test_random_motion_presets_leave_the_named_training_sets_alone():
+    assert "random" not in ds.TRAIN_MOTIONS and DATASETS["train_small"].motions == ds.TRAIN_MOTIONS
+    for name, like in (("train_random_small", "train_small"), ("train_random", "train")):
+        spec, named = DATASETS[name], DATASETS[like]
+        assert spec.motions == ("random",) and spec.split == "train"
+        assert spec.per_motion == len(named.motions) * named.per_motion and spec.n_frames == named.n_frames
+        betas = [b for *_, b in sequence_plan(spec)]
+        assert len({tuple(b.tolist()) for b in betas}) == len(betas)  # a random body shape per sequence

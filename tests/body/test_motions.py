@@ -8,8 +8,9 @@ from drapebench.body.motions import GRAVITY, UNGROUNDED_MOTIONS, ballistic_heigh
 
 # Stated physical bounds on joint accelerations (m/s^2, finite second differences of joint positions):
 # everyday motions stay under 5 g, athletic ones (a foot in a kick, hands in a jump) under 20 g, and
-# stress (fast, near joint limits) under 40 g.
-ACC_BOUND = {"run": 200.0, "jump": 200.0, "kick": 200.0, "stress": 400.0}
+# stress (fast, near joint limits) under 40 g; random (every joint at once, grounded through whichever foot is
+# lower, so the support switches often) under 10 g.
+ACC_BOUND = {"run": 200.0, "jump": 200.0, "kick": 200.0, "stress": 400.0, "random": 100.0}
 EVERYDAY_ACC_BOUND = 50.0
 
 

@@ -10,7 +10,7 @@ from drapebench.body.lbs import lbs
 from drapebench.garments import make_garment
 from drapebench.geometry.proximity import nearest_body_vertex
 from drapebench.physics import Material
-from drapebench.store import TrainData
+from drapebench.data import TrainData
 from methods.gaps.config import TRAIN_DEFAULTS
 from methods.gaps.method import skin_then_translate
 from methods.gaps.skinning import rbf_weights, smoothed_weights

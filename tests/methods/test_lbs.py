@@ -4,7 +4,7 @@ import methods
 from drapebench.body import make_sequence
 from drapebench.garments import make_garment
 from drapebench.physics import Material
-from drapebench.store import TrainData
+from drapebench.data import TrainData
 
 
 def test_registry_lists_and_rejects():

@@ -1,11 +1,14 @@
-"""prediction.h5 round trip, atomic writes and lazily loaded training data."""
+"""prediction.h5 round trip and atomic writes; the report reads run records without the pipeline."""
+
+import ast
+from pathlib import Path
 
 import h5py
 import numpy as np
 import pytest
 import torch
 
-from drapebench.store import TrainData, read_prediction, write_prediction
+from drapebench.results import read_prediction, write_prediction
 
 
 def test_prediction_round_trip(tmp_path):
@@ -27,9 +30,12 @@ def test_failed_write_keeps_the_old_file(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["p.h5"]
 
 
-def test_train_sequences_load_once_and_lazily():
-    calls = []
-    data = TrainData(body=None, material=None, garment=None, load_train=lambda: calls.append(1) or ["a", "b"])
-    assert calls == []
-    assert data.train_sequences == ["a", "b"] and data.train_sequences == ["a", "b"]
-    assert calls == [1]
+
+def test_report_does_not_import_the_pipeline():
+    """report.py reads run records through drapebench.results, never through drapebench.experiment (no import circle)."""
+    import drapebench.report
+
+    tree = ast.parse(Path(drapebench.report.__file__).read_text())
+    imported = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
+    imported |= {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
+    assert "drapebench.results" in imported and "drapebench.experiment" not in imported
