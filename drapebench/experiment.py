@@ -94,12 +94,13 @@ def drape_ms_per_frame(timings_ms: dict, drape_s: float, n_frames: int) -> float
 
 
 def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir: Path | None = None):
-    """Train, or load a checkpoint whose hash (method + training config + training data content + garment +
-    body + material) matches. Training writes its per-step ``losses.csv`` into ``log_dir`` (passed to
+    """Train, or load a checkpoint whose hash (method + training config + training data content + garment
+    (not for a generic method) + body + material) matches. Training writes its per-step ``losses.csv`` into ``log_dir`` (passed to
     ``fit`` as the train config's ``log_dir`` entry); a loaded checkpoint writes its saved one."""
     data_key = dataset_hash(train_cfg["dataset"]) if train_cfg.get("dataset") else None
-    key = content_hash(OmegaConf.to_container(cfg.method, resolve=True), train_cfg, data_key, garment.vertices,
-                       garment.faces, cfg.body.name, OmegaConf.to_container(cfg.material, resolve=True))  # fmt: skip
+    scene_garment = None if method.generic else (garment.vertices, garment.faces)  # one model for any garment: not keyed by it
+    key = content_hash(OmegaConf.to_container(cfg.method, resolve=True), train_cfg, data_key, scene_garment,
+                       cfg.body.name, OmegaConf.to_container(cfg.material, resolve=True))  # fmt: skip
     path = cache_dir("checkpoints") / f"{cfg.method.name}_{key}.pt"
     if not cfg.force and _valid(path):
         state = torch.load(path, map_location="cpu", weights_only=False)
@@ -256,7 +257,8 @@ def _run(cfg: DictConfig, out: Path) -> dict:
         t = time.perf_counter()
         nn = nearest_body_vertex(result.vertices, seq.vertices(body), seq.vertex_normals(body))
         record_drape(out / "drape.rrd", seq.vertices(body), body.faces, result.vertices, garment.topology, seq.fps,
-                     penetrating=nn.distance < 0, reference=reference, name=f"{cfg.method.name}_{garment.kind}_{seq.name}")  # fmt: skip
+                     penetrating=nn.distance < 0, reference=reference, stages=result.extras,
+                     name=f"{cfg.method.name}_{garment.kind}_{seq.name}")  # fmt: skip
         stages["viz_s"] = time.perf_counter() - t
     stages["total_s"] = time.perf_counter() - t_start
     record.update(stages)

@@ -39,12 +39,16 @@ def record_drape(
     fps: float,
     penetrating: torch.Tensor | None = None,
     reference: torch.Tensor | None = None,
+    stages: dict | None = None,
     name: str = "drape",
 ) -> Path:
     """Write ``path`` (.rrd): body (T, Vb, 3) and garment (T, V, 3) meshes on a ``frame`` timeline
     (and ``time`` in seconds); triangles are logged once as static, positions and colours per frame
     in columns. Garment colours show strain; ``penetrating`` (T, V) bool vertices are magenta. An
-    optional physics-based ``reference`` (T, V, 3) is logged as ``reference`` (blue, hidden by default)."""
+    optional physics-based ``reference`` (T, V, 3) is logged as ``reference`` (blue, hidden by default).
+    ``stages`` are a method's intermediate results (``DrapeResult.extras``): each (T, V, 3) one is a mesh
+    ``stages/<name>`` (green, hidden by default), each (T, V) bool one the points ``stages/<name>`` at
+    those vertices of the first mesh stage (yellow)."""
     import rerun as rr
     import rerun.blueprint as rrb
 
@@ -52,7 +56,11 @@ def record_drape(
     colors = strain_colors(garment_vertices.double(), garment_topology.to(dtype=torch.float64))
     if penetrating is not None:
         colors[penetrating.numpy()] = (230, 0, 200)
-    overrides = {"reference": rrb.EntityBehavior(visible=False)} if reference is not None else None
+    stages = dict(stages or {})
+    meshes = {k: v for k, v in stages.items() if v.dim() == 3}
+    masks = {k: v for k, v in stages.items() if v.dim() == 2 and v.dtype == torch.bool}
+    hidden = (["reference"] if reference is not None else []) + [f"stages/{k}" for k in meshes]
+    overrides = {e: rrb.EntityBehavior(visible=False) for e in hidden} or None
     blueprint = rrb.Blueprint(rrb.Spatial3DView(origin="/", name=name, overrides=overrides), rrb.TimePanel(state="collapsed"))
     stream = rr.RecordingStream("drapebench", recording_id=f"{name}-{np.random.default_rng().integers(1 << 62)}")
     path = Path(path)
@@ -77,6 +85,19 @@ def record_drape(
                                                           albedo_factor=(0.35, 0.55, 0.95, 1.0)), static=True)  # fmt: skip
             stream.send_columns("reference", indexes=index,
                                 columns=rr.Mesh3D.columns(vertex_positions=rv.reshape(-1, 3)).partition([rv.shape[1]] * T))  # fmt: skip
+        faces_u32 = garment_topology.faces.numpy().astype(np.uint32)
+        for k, v in meshes.items():
+            sv = v.detach().float().numpy()
+            stream.log(f"stages/{k}", rr.Mesh3D.from_fields(triangle_indices=faces_u32, albedo_factor=(0.45, 0.8, 0.45, 1.0)), static=True)
+            stream.send_columns(f"stages/{k}", indexes=index,
+                                columns=rr.Mesh3D.columns(vertex_positions=sv.reshape(-1, 3)).partition([sv.shape[1]] * T))  # fmt: skip
+        if masks and meshes:
+            base = next(iter(meshes.values())).detach().float()
+            for k, m in masks.items():
+                stream.log(f"stages/{k}", rr.Points3D.from_fields(colors=(250, 210, 40), radii=0.004), static=True)
+                pts = base[m].numpy()
+                stream.send_columns(f"stages/{k}", indexes=index,
+                                    columns=rr.Points3D.columns(positions=pts).partition(m.sum(1).tolist()))  # fmt: skip
         stream.flush()
         stream.disconnect()
     return path

@@ -16,6 +16,7 @@ _REGISTRY: dict[str, str] = {
     "lbs": "methods.lbs:LBSMethod",
     "gaps": "methods.gaps:GAPS",
     "pbs": "methods.pbs:PBSMethod",
+    "gensim": "methods.gensim:GenSim",
 }
 
 

@@ -1,0 +1,138 @@
+"""GenSim step 1: body-motion-aware ARAP (paper Sec. 3.1, Alg. 1 and 2), frame by frame.
+
+For one target frame: the target body is front-aligned (root rotation and translation removed), each
+garment vertex is bound to its closest canonical body vertex, handles are the vertices the body motion
+acts on, and ARAP moves them to their targets in ``n_iterations`` steps, pushing vertices that end up
+inside the body out along the closest body normal after each step. The readings of the printed
+algorithm that this code takes are listed in ``methods/gensim/README.md``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from drapebench.body.lbs import lbs
+from drapebench.body.skinning import nearest_weights, transfer_shape
+from drapebench.geometry.arap import arap_solver
+from drapebench.geometry.proximity import nearest_body_vertex
+
+
+@dataclass(frozen=True)
+class ArapConfig:
+    """eps: handle threshold on tau = u_hat . d_hat (paper -0.5); handle_side: "pushed" (vertices on the
+    side the body part moves towards, tau >= -eps) or "printed" (Alg. 2 line 6 as printed, tau <= eps);
+    pin_rule: "skinned" (pins follow the body by LBS with their closest vertex's weights, as the reference
+    simulation drives them) or "normal" (Alg. 2 line 9: closest target body vertex + |u| along its normal);
+    n_iterations / step (Alg. 1: 10 steps of 1/10); arap_iterations: local-global iterations per step;
+    min_motion: body motion (m) below which a vertex is no handle (its direction is undefined)."""
+
+    eps: float = -0.5
+    handle_side: str = "pushed"
+    pin_rule: str = "skinned"
+    n_iterations: int = 10
+    arap_iterations: int = 2
+    min_motion: float = 1e-4
+
+    def __post_init__(self):
+        if self.handle_side not in ("pushed", "printed"):
+            raise ValueError(f"gensim handle_side must be 'pushed' or 'printed', not {self.handle_side!r}")
+        if self.pin_rule not in ("skinned", "normal"):
+            raise ValueError(f"gensim pin_rule must be 'skinned' or 'normal', not {self.pin_rule!r}")
+        if self.n_iterations < 1 or self.arap_iterations < 1:
+            raise ValueError("gensim n_iterations and arap_iterations must be >= 1")
+
+
+@dataclass
+class Binding:
+    """Per garment (independent of the frame): closest canonical body vertex nu (V,), relative position
+    u = G_bar - B_bar[nu] (V, 3) m, pin mask (V,) bool."""
+
+    nu: torch.Tensor
+    u: torch.Tensor
+    pin: torch.Tensor
+
+
+@dataclass
+class ArapFrame:
+    """One frame of the ARAP stage, in the front-aligned body frame: deformed vertices (V, 3) m, handle
+    mask (V,) bool (pins included), body motion d (V, 3) m at each vertex's canonical closest vertex."""
+
+    vertices: torch.Tensor
+    handles: torch.Tensor
+    motion: torch.Tensor
+
+
+def bind(template: torch.Tensor, canonical_body: torch.Tensor, pins: torch.Tensor) -> Binding:
+    """Alg. 2 lines 2 and 4 for a template (V, 3) on the canonical body vertices (Vb, 3)."""
+    from scipy.spatial import cKDTree
+
+    _, nu = cKDTree(canonical_body.detach().double().cpu().numpy()).query(template.detach().double().cpu().numpy(), workers=1)
+    nu = torch.as_tensor(nu, dtype=torch.long)
+    pin = torch.zeros(len(template), dtype=torch.bool)
+    pin[pins.long()] = True
+    return Binding(nu, template - canonical_body[nu], pin)
+
+
+def handle_targets(binding: Binding, template, canonical_body, target_body, target_normals, skinned_pins, cfg: ArapConfig):
+    """Alg. 2: handle mask (V,) bool (pins included), target positions (V, 3) m (only handle rows are
+    meaningful) and the body motion d (V, 3) m, for one front-aligned target body (Vb, 3) with its
+    normals (Vb, 3); ``skinned_pins`` (V, 3) are the template skinned to that frame (pin_rule "skinned")."""
+    d = target_body[binding.nu] - canonical_body[binding.nu]
+    d_norm = d.norm(dim=-1)
+    u_norm = binding.u.norm(dim=-1)
+    moving = d_norm > cfg.min_motion
+    d_hat = d / d_norm.clamp_min(1e-12)[:, None]
+    tau = (binding.u * d_hat).sum(-1) / u_norm.clamp_min(1e-12)
+    side = tau <= cfg.eps if cfg.handle_side == "printed" else tau >= -cfg.eps
+    handles = moving & side & ~binding.pin
+    q = (binding.u * d_hat).sum(-1)
+    targets = template + d_hat * (d_norm - q)[:, None]
+    if cfg.pin_rule == "normal":
+        pin_targets = target_body[binding.nu] + target_normals[binding.nu] * u_norm[:, None]
+    else:
+        pin_targets = skinned_pins
+    targets = torch.where(binding.pin[:, None], pin_targets, targets)
+    return handles | binding.pin, targets, d
+
+
+def motion_aware_arap(template, faces, handles, targets, target_body, target_normals, cfg: ArapConfig, candidates=None) -> torch.Tensor:
+    """Alg. 1: (V, 3) deformed garment. Handles (V,) bool move from the template (V, 3) to ``targets``
+    (V, 3) in ``cfg.n_iterations`` equal steps; after each ARAP solve the non-handle vertices inside the
+    front-aligned target body (nearest body vertex normal distance zeta <= 0) move out by |zeta| along
+    the normal."""
+    idx = torch.nonzero(handles).squeeze(1)
+    solver = arap_solver(template, faces, idx, cfg.arap_iterations)
+    start, goal = template[idx].double(), targets[idx].double()
+    free = ~handles
+    G = template.double().numpy()
+    for k in range(1, cfg.n_iterations + 1):
+        S = start + (goal - start) * (k / cfg.n_iterations)
+        G = solver.solve(S.numpy(), G)
+        x = torch.from_numpy(G)
+        nn = nearest_body_vertex(x[free][None], target_body[None].double(), target_normals[None].double(), candidates)
+        zeta, n = nn.distance[0], nn.normal[0]
+        push = torch.zeros_like(x)
+        push[free] = torch.where((zeta <= 0)[:, None], -zeta[:, None] * n, torch.zeros_like(n))
+        G = (x + push).numpy()
+    return torch.from_numpy(np.ascontiguousarray(G)).to(template.dtype)
+
+
+def front_aligned(body, betas: torch.Tensor, poses: torch.Tensor):
+    """Front-aligned bodies: vertices (T, Vb, 3) and skinning transforms (T, J, 4, 4) with the root rotation
+    and translation removed (paper Sec. 4.3), for betas (S,) or (T, S) and poses (T, J, 3)."""
+    aligned = poses.clone()
+    aligned[:, 0] = 0.0
+    betas = betas.expand(len(poses), -1) if betas.dim() == 1 else betas
+    with torch.no_grad():
+        out = body.forward(betas, aligned, torch.zeros(len(poses), 3, dtype=poses.dtype))
+    return out.vertices, out.transforms
+
+
+def skinned_template(template, binding: Binding, body, garment_betas, betas, transforms) -> torch.Tensor:
+    """(T, V, 3) the template moved to body shape ``betas`` and skinned with its closest canonical vertex's
+    weights by ``transforms`` (T, J, 4, 4): where pins go under pin_rule "skinned"."""
+    rest = transfer_shape(template, binding.nu, body, garment_betas, betas)
+    return lbs(rest, nearest_weights(binding.nu, body).to(template.dtype), transforms.to(template.dtype))

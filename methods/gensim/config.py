@@ -1,0 +1,72 @@
+"""GenSim's settings and their defaults (``method.params``; the training budget itself is ``conf/train``).
+
+``train`` holds what only GenSim reads in training: the training garments (kinds, size seeds, mesh
+resolutions), the random motions and body shapes they are posed on, and ``schedule``: values of the
+budget (lr, epochs, ...) that GenSim's paper sets differently from the shared preset;
+``conf/method/gensim_budget/<train preset>.yaml`` fills it per preset.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+from methods.gensim.losses import WEIGHTS
+
+TRAIN_DEFAULTS = dict(
+    kinds=("tshirt", "tank", "longsleeve", "skirt", "skirt_flared", "skirt_straight"),  # tops and skirts (paper Sec. 4)
+    seeds=(1, 2),  # garment size variations (drapebench.garments.factory: ease x0.9-1.1, length +-3 cm)
+    resolutions=(0.015, 0.022),  # target edge length (m): two mesh resolutions per garment
+    sequences=2,  # random-motion sequences per garment
+    n_frames=60,  # frames per sequence (after the transition from the rest pose)
+    frames_per_sequence=6,  # frames sampled per sequence (GenSim is quasi-static: frames are independent)
+    beta_std=1.0,  # body shapes: betas ~ N(0, beta_std^2) clipped to +-beta_clip on the first n_shape_betas
+    beta_clip=2.0,
+    n_shape_betas=4,
+    schedule={},  # overrides of the budget (conf/train) for GenSim, e.g. the paper's lr 1e-4 x0.1 at epoch 20 of 30
+)
+METHOD_DEFAULTS = dict(
+    latent=64,  # width of node/edge features and MLPs (a ~1 MB model, as the paper states)
+    geometry=32,  # PointNet feature size per garment / body point
+    steps=8,  # message-passing steps L
+    direction="tangent",  # tangent | paper (Eq. 1 as printed, b3 = (-b1 n1 - b2 n2) / n3)
+    magnitude_scale=0.01,  # displacement magnitude w = scale x softplus(raw) m
+    eps=-0.5,  # handle threshold on tau (Alg. 2)
+    handle_side="pushed",  # pushed | printed (Alg. 2 line 6 as printed)
+    pin_rule="skinned",  # skinned | normal (Alg. 2 line 9)
+    arap_steps=10,  # nitr (Alg. 1), step t = 1 / nitr
+    arap_iterations=2,  # local-global ARAP iterations per step
+    collision_eps=0.003,  # eps_coll (Eq. 8)
+    bending_rest="flat",  # flat (Eq. 4: theta^2) | template
+    fabric_mean=None,  # mu_fabric (m); None: fitted by methods.gensim.fabric (cached)
+    fabric_std=None,  # sigma_fabric (m)
+    weights=dict(WEIGHTS),  # gamma_1..6 (Eq. 9)
+    supervised=False,  # gensim_l2: L2 to reference drapes + smoothness + collision (paper Table 2)
+    train=TRAIN_DEFAULTS,
+)
+CHOICES = dict(direction=("tangent", "paper"), handle_side=("pushed", "printed"), pin_rule=("skinned", "normal"), bending_rest=("flat", "template"))
+
+
+def gensim_params(cfg: Mapping[str, Any] | None) -> dict:
+    """GenSim's parameters: the defaults updated by ``cfg`` (``method.params``; ``train`` and ``weights``
+    update their own defaults). Raises ValueError naming an unknown key or an invalid choice."""
+    cfg = dict(cfg or {})
+    unknown = set(cfg) - set(METHOD_DEFAULTS)
+    if unknown:
+        raise ValueError(f"unknown gensim parameter(s) {sorted(unknown)}; valid: {sorted(METHOD_DEFAULTS)}")
+    tp = dict(cfg.pop("train", None) or {})
+    unknown = set(tp) - set(TRAIN_DEFAULTS)
+    if unknown:
+        raise ValueError(f"unknown gensim training parameter(s) {sorted(unknown)} (method.params.train); valid: {sorted(TRAIN_DEFAULTS)}")
+    w = dict(cfg.pop("weights", None) or {})
+    unknown = set(w) - set(WEIGHTS)
+    if unknown:
+        raise ValueError(f"unknown gensim loss weight(s) {sorted(unknown)}; valid: {sorted(WEIGHTS)}")
+    p = {**METHOD_DEFAULTS, **cfg, "train": {**TRAIN_DEFAULTS, **tp}, "weights": {**WEIGHTS, **w}}
+    for key, choices in CHOICES.items():
+        if p[key] not in choices:
+            raise ValueError(f"gensim parameter {key} must be one of {', '.join(choices)}, not {p[key]!r}")
+    if (p["fabric_mean"] is None) != (p["fabric_std"] is None):
+        raise ValueError("gensim fabric_mean and fabric_std are set together (or both null to fit them)")
+    if p["fabric_std"] is not None and not p["fabric_std"] > 0:
+        raise ValueError(f"gensim fabric_std must be positive, got {p['fabric_std']}")
+    return p

@@ -1,0 +1,61 @@
+"""GenSim's unsupervised losses (paper Eq. 2-9), each a :mod:`drapebench.physics` energy times its weight.
+
+Every function takes the predicted garment x (B, V, 3) m of B frames of one garment and returns a scalar:
+the frames' mean of the weighted term. The readings the paper leaves open are in ``methods/gensim/README.md``.
+"""
+
+from __future__ import annotations
+
+import torch
+
+from drapebench.geometry.proximity import nearest_body_vertex
+from drapebench.physics import (
+    bending_energy,
+    gravity_energy,
+    hinge_collision_energy,
+    laplacian_smoothness,
+    pin_energy,
+    restrain_energy,
+)
+
+WEIGHTS = {"restrain": 1e2, "bending": 1.0, "pin": 1e2, "potential": 1e2, "smoothness": 1.0, "collision": 1e2, "l2": 1e2}
+UNSUPERVISED = ("restrain", "bending", "pin", "potential", "smoothness", "collision")  # Eq. 9
+SUPERVISED = ("l2", "smoothness", "collision")  # the paper's Table 2 baseline
+
+
+def restrain(x, topo, fabric_mean: float, fabric_std: float, weight: float) -> torch.Tensor:
+    """Eq. 2-3: sum over edges of ((|l - l0| - mu_fabric) / sigma_fabric)^2."""
+    return weight * restrain_energy(x, topo, fabric_mean, fabric_std).mean()
+
+
+def bending(x, topo, material, weight: float, rest_angle: str = "flat") -> torch.Tensor:
+    """Eq. 4: sum over hinges of |E|^2 / (4 (A1 + A2)) theta^2 / 2 with the deformed edge and faces (no
+    stiffness factor: the physics energy divided by the material's bending stiffness)."""
+    return weight * bending_energy(x, topo, material, rest_angle=rest_angle, scale="current").mean() / material.bending
+
+
+def pin(x, arap, pins: torch.Tensor, weight: float) -> torch.Tensor:
+    """Eq. 5: sum over pins of |G_i - x_i|^2 with G the ARAP-deformed garment (B, V, 3)."""
+    return weight * pin_energy(x, arap[:, pins], pins).mean()
+
+
+def potential(x, topo, material, free: torch.Tensor, weight: float) -> torch.Tensor:
+    """Eq. 6: sum over the non-pin vertices (``free`` (V,) bool) of m g z (J)."""
+    return weight * (gravity_energy(x, topo, material, per_element=True) * free).sum(-1).mean()
+
+
+def smoothness(x, topo, weight: float) -> torch.Tensor:
+    """Eq. 7: sum over vertices of |L x| with the cotangent Laplacian L."""
+    return weight * laplacian_smoothness(x, topo).mean()
+
+
+def l2(x, reference, weight: float) -> torch.Tensor:
+    """The supervised baseline's data term: sum over vertices of |x - x_ref|^2 (m^2) to reference drapes (B, V, 3)."""
+    return weight * ((x - reference) ** 2).sum(-1).sum(-1).mean()
+
+
+def collision(x, body_vertices, body_normals, eps: float, weight: float, candidates=None) -> torch.Tensor:
+    """Eq. 8 (hinge reading): sum over vertices of max(eps - n . (x - B_nu), 0) with B_nu the body vertex
+    closest to each predicted vertex and n its unit normal; body_vertices/normals (B, Vb, 3)."""
+    nn = nearest_body_vertex(x, body_vertices, body_normals, candidates)
+    return weight * hinge_collision_energy(x, nn.point, nn.normal, eps).mean()

@@ -1,0 +1,283 @@
+"""GenSim (Tiwari, Bhowmick, Sinha, CVPR-W 2023): motion-aware ARAP, then the Physics Enforcing Network;
+one model for every garment, trained without supervision. See ``methods/gensim/README.md`` for the
+paper-to-code map and every choice the paper leaves open."""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from drapebench.cache import atomic_write, cache_dir, content_hash
+from drapebench.geometry.ops import vertex_normals
+from drapebench.geometry.proximity import nearest_body_vertex
+from drapebench.progress import progress
+from drapebench.train import Objective, train, train_config
+from methods.base import DrapeResult, DrapingMethod, FitReport
+from methods.gensim import losses
+from methods.gensim.arap import ArapConfig, Binding, bind, front_aligned, handle_targets, motion_aware_arap, skinned_template
+from methods.gensim.config import gensim_params
+from methods.gensim.network import PEN
+from methods.gensim.pins import garment_pins
+
+log = logging.getLogger("drapebench")
+PEN_CHUNK = 16  # frames per PEN pass at inference
+
+
+@dataclass
+class GarmentGraph:
+    """What PEN needs of one garment, whatever the frame: template (V, 3) m on the canonical body,
+    topology, pins (P,) and the pin mask (V,), directed edges senders/receivers (2E,), template edge
+    vectors (2E, 3), vertex masses (V,) g, the canonical binding, and the betas it was made on."""
+
+    template: torch.Tensor
+    topology: object
+    pins: torch.Tensor
+    pin_mask: torch.Tensor
+    senders: torch.Tensor
+    receivers: torch.Tensor
+    rest_edges: torch.Tensor
+    mass_g: torch.Tensor
+    binding: Binding
+    betas: torch.Tensor
+
+
+def garment_graph(garment, body, material) -> GarmentGraph:
+    """The :class:`GarmentGraph` of a garment on its canonical body (the rest body of ``garment.betas``)."""
+    pins = garment_pins(garment, body)
+    with torch.no_grad():
+        canonical = body.shaped(garment.betas[None, : body.n_betas].to(body.dtype))[0][0]
+    template = garment.vertices.to(body.dtype)
+    e = garment.topology.edges
+    senders, receivers = torch.cat([e[:, 0], e[:, 1]]), torch.cat([e[:, 1], e[:, 0]])
+    b = bind(template, canonical, pins)
+    return GarmentGraph(template, garment.topology, pins, b.pin, senders, receivers, template[receivers] - template[senders],
+                        garment.topology.vertex_masses(material).to(body.dtype) * 1e3, b, garment.betas.to(body.dtype))  # fmt: skip
+
+
+class GenSim(DrapingMethod):
+    """Motion-aware ARAP + PEN (see the module docstring)."""
+
+    name = "gensim"
+    generic = True
+    needs_reference = False
+
+    def __init__(self, cfg=None):
+        super().__init__(cfg)
+        self.p = gensim_params(self.cfg)
+        self.arap = ArapConfig(self.p["eps"], self.p["handle_side"], self.p["pin_rule"], self.p["arap_steps"], self.p["arap_iterations"])
+        self.net = None
+        self.fabric = None
+
+    # ------------------------------------------------------------------ the two stages
+    def _new_net(self) -> PEN:
+        p = self.p
+        return PEN(p["latent"], p["geometry"], p["steps"], p["direction"], p["magnitude_scale"]).to(self.body.dtype)
+
+    def arap_stage(self, graph: GarmentGraph, betas: torch.Tensor, poses: torch.Tensor):
+        """ARAP-deformed garment (T, V, 3), handle masks (T, V) bool and body motion d (T, V, 3), all in the
+        front-aligned frame, for a body shape ``betas`` (S,) and poses (T, J, 3); plus the aligned bodies
+        (T, Vb, 3), their normals and skinning transforms (T, J, 4, 4)."""
+        body = self.body
+        verts, transforms = front_aligned(body, betas, poses.to(body.dtype))
+        normals = vertex_normals(verts, body.faces)
+        with torch.no_grad():
+            canonical = body.shaped(graph.betas[None, : body.n_betas])[0][0]
+            pins_at = skinned_template(graph.template, graph.binding, body, graph.betas, betas, transforms)
+        G, H, D = [], [], []
+        for t in range(len(poses)):
+            handles, targets, d = handle_targets(graph.binding, graph.template, canonical, verts[t], normals[t], pins_at[t], self.arap)
+            G.append(motion_aware_arap(graph.template, graph.topology.faces, handles, targets, verts[t], normals[t], self.arap))
+            H.append(handles)
+            D.append(d)
+        return torch.stack(G), torch.stack(H), torch.stack(D), verts, normals, transforms
+
+    def pen(self, graph: GarmentGraph, G, d, body_vertices, body_normals, betas) -> tuple[torch.Tensor, torch.Tensor]:
+        """PEN's corrected garment G + delta (B, V, 3) and delta, for ARAP results G (B, V, 3), body motion
+        d (B, V, 3), front-aligned bodies (B, Vb, 3) with normals, and body shapes betas (B, S)."""
+        nn = nearest_body_vertex(G, body_vertices, body_normals)
+        B, V, _ = G.shape
+        pin = graph.pin_mask.to(G.dtype)[None, :, None].expand(B, V, 1)
+        mass = graph.mass_g[None, :, None].expand(B, V, 1)
+        u = graph.binding.u[None].expand(B, V, 3)
+        node = torch.cat([u, G - nn.point, d, nn.normal, pin, mass], -1)
+        rest = graph.rest_edges[None].expand(B, -1, 3)
+        arap_e = G[:, graph.receivers] - G[:, graph.senders]
+        edge = torch.cat([rest, rest.norm(dim=-1, keepdim=True), arap_e, arap_e.norm(dim=-1, keepdim=True)], -1)
+        with torch.no_grad():
+            body_rest = self.body.shaped(betas)[0]
+        index = graph.binding.nu[None].expand(B, V)
+        delta, _ = self.net(node, edge, graph.senders, graph.receivers, graph.template, body_rest, index, nn.normal)
+        return G + delta, delta
+
+    # ------------------------------------------------------------------ training
+    def fit(self, data, train_cfg=None) -> FitReport:
+        """Train PEN once on the training garments of ``method.params.train`` (see ``methods/gensim/config.py``)
+        posed on random motions and body shapes, with the unsupervised losses of Eq. 9."""
+        self.bind(data.body, data.material)
+        train_cfg = dict(train_cfg or {})
+        log_dir = train_cfg.pop("log_dir", None)
+        train_cfg.pop("dataset", None)  # GenSim builds its own training frames (below)
+        budget = train_config({**train_cfg, **self.p["train"]["schedule"]})
+        self.fabric = self._fabric()
+        torch.manual_seed(budget.seed)
+        self.net = self._new_net()
+        self._graphs, self._items = self._training_frames(budget.seed)
+        key = content_hash(self.p, budget, dict(self.body.state_dict()), self.body.parents, data.material, self.fabric,
+                           [(g.template, g.topology.faces) for g in self._graphs])  # fmt: skip
+        objective = Objective("gensim", [{"params": list(self.net.parameters()), "lr_factor": 1.0}], len(self._items),
+                              self._batch, self._loss_terms, key)  # fmt: skip
+        res = train(objective, budget, log_dir=log_dir)
+        return FitReport(train_s=res.train_s, n_steps=res.n_steps, final_losses=res.history[-1] if res.history else {},
+                         history=res.history, resumed_from=res.resumed_from)  # fmt: skip
+
+    def _fabric(self) -> dict:
+        """mu_fabric and sigma_fabric (m): the configured values, or the cached fit to reference simulations."""
+        if self.p["fabric_mean"] is not None:
+            return {"mean": float(self.p["fabric_mean"]), "std": float(self.p["fabric_std"])}
+        from methods.gensim.fabric import fit_fabric
+
+        fit = fit_fabric()
+        return {"mean": fit["mean"], "std": fit["std"]}
+
+    def _training_frames(self, seed: int):
+        """Training garments (graphs) and items (garment index, betas, poses (1, J, 3), ARAP G (V, 3), d (V, 3),
+        reference drape (V, 3) or None): the ARAP stage of sampled frames of random motions on random body
+        shapes (and, when ``supervised``, their reference drapes), cached by content."""
+        from drapebench.body import make_sequence
+        from drapebench.garments import make_garment
+
+        tp, body = self.p["train"], self.body
+        garments = [make_garment(k, body, seed=s, resolution=r) for k in tp["kinds"] for s in tp["seeds"] for r in tp["resolutions"]]
+        graphs = [garment_graph(g, body, self.material) for g in garments]
+        key = content_hash("gensim_frames_v2", tp, seed, self.p["supervised"], self.material, dict(body.state_dict()), self.arap, [(g.vertices, g.faces, g.pins) for g in garments])
+        path = cache_dir("gensim") / f"frames_{key}.pt"
+        if path.exists():
+            try:
+                return graphs, torch.load(path, weights_only=False)
+            except (OSError, RuntimeError, EOFError) as err:
+                log.warning("gensim: cached training frames %s are unreadable (%s); rebuilding them", path, err)
+        rng = np.random.default_rng(seed)
+        items = []
+        plan = [(gi, k) for gi in range(len(graphs)) for k in range(tp["sequences"])]
+        for gi, k in progress(plan, desc="gensim ARAP training frames", unit="seq"):
+            betas = torch.zeros(body.n_betas, dtype=body.dtype)
+            n = tp["n_shape_betas"]
+            betas[:n] = torch.as_tensor(np.clip(rng.normal(0, tp["beta_std"], n), -tp["beta_clip"], tp["beta_clip"]), dtype=body.dtype)
+            seq = make_sequence("random", tp["n_frames"], seed=int(rng.integers(2**31)), betas=betas.tolist())
+            frames = np.linspace(seq.n_transition, seq.n_frames - 1, tp["frames_per_sequence"]).round().astype(int)
+            poses = seq.poses[frames].to(body.dtype)
+            refs = self._reference_frames(garments[gi], seq, frames) if self.p["supervised"] else [None] * len(frames)
+            if refs is None:
+                continue
+            G, _, D, *_ = self.arap_stage(graphs[gi], betas, poses)
+            items += [(gi, betas, poses[j : j + 1], G[j], D[j], refs[j]) for j in range(len(frames))]
+        if not items:
+            raise RuntimeError("gensim: no training frames (every reference simulation failed); see the warnings above")
+        with atomic_write(path, mode=None) as tmp:
+            torch.save(items, tmp)
+        return graphs, items
+
+    def _reference_frames(self, garment, seq, frames):
+        """Reference drapes (F, V, 3) of ``frames`` of ``seq`` in the front-aligned frame (the supervised
+        variant's targets), or None (with a warning) when the simulation fails."""
+        from drapebench.errors import DrapeFailed
+        from drapebench.reference import simulate
+
+        try:
+            x = simulate(garment, seq, self.body, self.material)[frames].to(self.body.dtype)
+        except DrapeFailed as err:
+            log.warning("gensim: no reference for %s on %s, sequence skipped: %s", garment.name, seq.name, err)
+            return None
+        root = seq.transforms(self.body)[frames, 0].to(x.dtype)  # aligned -> world: x = R y + t
+        return (x - root[:, None, :3, 3]) @ root[:, :3, :3]
+
+    def _batch(self, items: np.ndarray, at) -> list:
+        """Items grouped by garment: [(graph, G (B, V, 3), d, body (B, Vb, 3), normals, betas (B, S), reference
+        drapes (B, V, 3) or None)]."""
+        groups: dict[int, list] = {}
+        for j in items:
+            groups.setdefault(self._items[j][0], []).append(self._items[j])
+        out = []
+        for gi, rows in groups.items():
+            betas = torch.stack([r[1] for r in rows])
+            poses = torch.cat([r[2] for r in rows])
+            verts, _ = front_aligned(self.body, betas, poses)
+            ref = torch.stack([r[5] for r in rows]) if self.p["supervised"] else None
+            out.append((self._graphs[gi], torch.stack([r[3] for r in rows]), torch.stack([r[4] for r in rows]), verts,
+                        vertex_normals(verts, self.body.faces), betas, ref))  # fmt: skip
+        return out
+
+    def _loss_terms(self, batch: list, at) -> dict:
+        """Eq. 9's weighted terms, averaged over the frames of the batch (each garment's frames together)."""
+        total, n = {}, sum(len(b[1]) for b in batch)
+        for graph, G, d, verts, normals, betas, ref in batch:
+            x, _ = self.pen(graph, G, d, verts, normals, betas)
+            for name, value in self.terms(graph, x, G, verts, normals, ref).items():
+                total[name] = total.get(name, 0.0) + value * (len(G) / n)
+        return total
+
+    def terms(self, graph: GarmentGraph, x, G, body_vertices, body_normals, reference=None) -> dict:
+        """The weighted loss terms (frame means) of predictions x (B, V, 3) for ARAP results G: Eq. 9's, or with
+        ``supervised`` L2 to ``reference`` (B, V, 3) + smoothness + collision; a term of weight 0 is left out."""
+        w, mat, topo = self.p["weights"], self.material, graph.topology
+        make = {
+            "restrain": lambda: losses.restrain(x, topo, self.fabric["mean"], self.fabric["std"], w["restrain"]),
+            "bending": lambda: losses.bending(x, topo, mat, w["bending"], self.p["bending_rest"]),
+            "pin": lambda: losses.pin(x, G, graph.pins, w["pin"]),
+            "potential": lambda: losses.potential(x, topo, mat, ~graph.pin_mask, w["potential"]),
+            "smoothness": lambda: losses.smoothness(x, topo, w["smoothness"]),
+            "collision": lambda: losses.collision(x, body_vertices, body_normals, self.p["collision_eps"], w["collision"]),
+            "l2": lambda: losses.l2(x, reference, w["l2"]),
+        }
+        names = losses.SUPERVISED if self.p["supervised"] else losses.UNSUPERVISED
+        return {name: make[name]() for name in names if w[name] != 0}
+
+    # ------------------------------------------------------------------ inference
+    def drape(self, garment, seq) -> DrapeResult:
+        """Each frame: ARAP on the front-aligned body, PEN (batched over frames), then the root rotation and
+        translation put back. ``extras`` holds the ARAP stage (T, V, 3) and its handle masks (T, V)."""
+        self._require_bound()
+        if self.net is None:
+            raise RuntimeError("gensim: not trained; call fit() or load_state_dict() first")
+        t0 = time.perf_counter()
+        graph = garment_graph(garment, self.body, self.material)
+        betas = torch.zeros(self.body.n_betas, dtype=self.body.dtype)
+        given = seq.betas[: self.body.n_betas]
+        betas[: len(given)] = given.to(self.body.dtype)
+        t1 = time.perf_counter()
+        G, H, D, verts, normals, _ = self.arap_stage(graph, betas, seq.poses)
+        t2 = time.perf_counter()
+        xs = []
+        with torch.inference_mode():
+            for s in range(0, seq.n_frames, PEN_CHUNK):
+                e = min(seq.n_frames, s + PEN_CHUNK)
+                xs.append(self.pen(graph, G[s:e], D[s:e], verts[s:e], normals[s:e], betas[None].expand(e - s, -1))[0])
+        x = torch.cat(xs)
+        t3 = time.perf_counter()
+        root = seq.transforms(self.body)[:, 0].to(x.dtype)  # the root's skinning transform: aligned -> world
+        world = lambda y: y @ root[:, :3, :3].transpose(1, 2) + root[:, None, :3, 3]  # noqa: E731
+        x, G = world(x), world(G)
+        t4 = time.perf_counter()
+        ms = lambda a, b: (b - a) * 1e3  # noqa: E731
+        return DrapeResult(x.clone(), {"setup": ms(t0, t1), "arap": ms(t1, t2), "pen": ms(t2, t3), "pose": ms(t3, t4)},
+                           extras={"arap": G, "handles": H})  # fmt: skip
+
+    # ------------------------------------------------------------------ state
+    def state_dict(self) -> dict:
+        if self.net is None:
+            return {}
+        return {"net": self.net.state_dict(), "params": dict(self.p), "fabric": dict(self.fabric)}
+
+    def load_state_dict(self, state) -> None:
+        if not state:
+            return
+        if state["params"] != self.p:
+            raise ValueError(f"gensim checkpoint was trained with {state['params']}, not {self.p}")
+        self._require_bound()
+        self.net = self._new_net()
+        self.net.load_state_dict(state["net"])
+        self.fabric = dict(state["fabric"])

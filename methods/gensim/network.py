@@ -1,0 +1,137 @@
+"""GenSim step 2: the Physics Enforcing Network (paper Sec. 3.2) and its displacement direction (Eq. 1).
+
+PEN encodes the ARAP-deformed garment as a graph (a node per vertex, two directed edges per mesh edge),
+runs L message-passing steps (edge update from its end nodes, node update from the mean of its incoming
+edges, residual MLPs) and decodes per vertex (b1, b2, rho, w): a unit direction in the half-space of the
+closest body normal and a non-negative magnitude. Everything is batched over frames: inputs are (B, V, .)
+with one garment topology shared by the batch.
+"""
+
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+
+def mlp(n_in: int, n_out: int, hidden: int, layers: int = 2, norm: bool = True) -> nn.Sequential:
+    """``layers`` linear layers with ReLU between them (and a LayerNorm on the output when ``norm``)."""
+    dims = [n_in] + [hidden] * (layers - 1) + [n_out]
+    mods: list[nn.Module] = []
+    for i in range(layers):
+        mods.append(nn.Linear(dims[i], dims[i + 1]))
+        if i < layers - 1:
+            mods.append(nn.ReLU())
+    if norm:
+        mods.append(nn.LayerNorm(n_out))
+    return nn.Sequential(*mods)
+
+
+class PointNetEncoder(nn.Module):
+    """PointNet geometry encoder: a shared per-point MLP, a max-pooled global feature, and per point the
+    concatenation [local, global] mapped to ``n_out`` features. points (B, N, 3) -> (B, N, n_out)."""
+
+    def __init__(self, n_out: int = 32, hidden: int = 64):
+        super().__init__()
+        self.local = mlp(3, hidden, hidden, layers=2, norm=False)
+        self.out = mlp(2 * hidden, n_out, hidden, layers=2, norm=False)
+
+    def forward(self, points: torch.Tensor) -> torch.Tensor:
+        h = torch.relu(self.local(points))
+        g = h.max(dim=-2, keepdim=True).values.expand_as(h)
+        return self.out(torch.cat([h, g], -1))
+
+
+def tangent_basis(n: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Orthonormal tangent vectors (t1, t2) of unit normals n (..., 3), smooth and finite for every n
+    (Duff et al. 2017, "Building an orthonormal basis, revisited")."""
+    x, y, z = n.unbind(-1)
+    sign = torch.where(z >= 0, torch.ones_like(z), -torch.ones_like(z))
+    a = -1.0 / (sign + z)
+    b = x * y * a
+    t1 = torch.stack([1.0 + sign * x * x * a, sign * b, -sign * x], -1)
+    t2 = torch.stack([b, sign + y * y * a, -y], -1)
+    return t1, t2
+
+
+def displacement_direction(b1: torch.Tensor, b2: torch.Tensor, rho: torch.Tensor, normal: torch.Tensor, mode: str = "tangent") -> torch.Tensor:
+    """Unit displacement direction of GenSim Eq. 1: D = |rho| n + (1 - |rho|) s b_hat, D_hat = D / |D|,
+    with b orthogonal to the unit body normal n (..., 3) and rho in [-1, 1] (..., ) (tanh output).
+
+    ``mode`` "paper": b = (b1, b2, b3), b3 = (-b1 n1 - b2 n2) / n3 and s = rho / |rho| as printed
+    (NaN/Inf where n3 = 0, rho = 0 or b = 0); "tangent": b = b1 t1 + b2 t2 in a tangent basis of n and
+    s = +1 at rho = 0, finite for every input. Both give D_hat . n = |rho| / |D| >= 0."""
+    if mode == "paper":
+        n1, n2, n3 = normal.unbind(-1)
+        b = torch.stack([b1, b2, (-b1 * n1 - b2 * n2) / n3], -1)
+        b_hat = b / b.norm(dim=-1, keepdim=True)
+        s = rho / rho.abs()
+    elif mode == "tangent":
+        t1, t2 = tangent_basis(normal)
+        b = b1[..., None] * t1 + b2[..., None] * t2
+        norm = b.norm(dim=-1, keepdim=True)
+        b_hat = torch.where(norm > 1e-12, b / norm.clamp_min(1e-12), t1)
+        s = torch.where(rho >= 0, torch.ones_like(rho), -torch.ones_like(rho))
+    else:
+        raise ValueError(f"gensim direction must be 'paper' or 'tangent', not {mode!r}")
+    r = rho.abs()[..., None]
+    D = r * normal + (1.0 - r) * s[..., None] * b_hat
+    return D / D.norm(dim=-1, keepdim=True)
+
+
+class EdgeUpdate(nn.Module):
+    """Residual edge update e + MLP([e, h_senders, h_receivers]) (B, 2E, n), with the first layer applied to
+    the nodes before the gather (W [e; h_s; h_r] = W_e e + (W_s h)[s] + (W_r h)[r]): the same function,
+    a third of the work on the (many more) edges."""
+
+    def __init__(self, latent: int):
+        super().__init__()
+        self.edge_in = nn.Linear(latent, latent)
+        self.sender_in = nn.Linear(latent, latent, bias=False)
+        self.receiver_in = nn.Linear(latent, latent, bias=False)
+        self.rest = nn.Sequential(nn.ReLU(), nn.Linear(latent, latent), nn.LayerNorm(latent))
+
+    def forward(self, e, h, senders, receivers):
+        return e + self.rest(self.edge_in(e) + self.sender_in(h)[:, senders] + self.receiver_in(h)[:, receivers])
+
+
+class PEN(nn.Module):
+    """Physics Enforcing Network. ``forward(node_inputs (B, V, n_node), edge_inputs (B, 2E, n_edge),
+    senders (2E,), receivers (2E,), garment_points (V, 3), body_points (B or 1, Vb, 3), body_index (B, V),
+    normal (B, V, 3))`` -> displacements (B, V, 3) m and the decoded (b1, b2, rho, w)."""
+
+    N_NODE = 3 * 4 + 2  # u, v, d, n, pin, mass
+    N_EDGE = 8  # E_ij, |E_ij|, E_ij^ARAP, |E_ij^ARAP|
+
+    def __init__(self, latent: int = 128, geometry: int = 32, steps: int = 8, direction: str = "tangent", magnitude_scale: float = 0.01):
+        super().__init__()
+        self.direction, self.magnitude_scale = direction, magnitude_scale
+        self.garment_encoder = PointNetEncoder(geometry)
+        self.body_encoder = PointNetEncoder(geometry)
+        self.node_encoder = mlp(2 * geometry + self.N_NODE, latent, latent)
+        self.edge_encoder = mlp(self.N_EDGE, latent, latent)
+        self.edge_updates = nn.ModuleList(EdgeUpdate(latent) for _ in range(steps))
+        self.node_updates = nn.ModuleList(mlp(2 * latent, latent, latent) for _ in range(steps))
+        self.decoder = mlp(latent, 4, latent, norm=False)
+        with torch.no_grad():  # start near zero displacement: softplus(-4) x scale ~ 0.2 mm
+            self.decoder[-1].weight.mul_(0.01)
+            self.decoder[-1].bias.zero_()
+            self.decoder[-1].bias[3] = -4.0
+
+    def forward(self, node_inputs, edge_inputs, senders, receivers, garment_points, body_points, body_index, normal):
+        B, V, _ = node_inputs.shape
+        f_gar = self.garment_encoder(garment_points[None]).expand(B, -1, -1)
+        f_body_all = self.body_encoder(body_points).expand(B, -1, -1)
+        f_body = torch.gather(f_body_all, 1, body_index[..., None].expand(-1, -1, f_body_all.shape[-1]))
+        h = self.node_encoder(torch.cat([f_gar, f_body, node_inputs], -1))
+        e = self.edge_encoder(edge_inputs)
+        count = torch.zeros(V, dtype=h.dtype, device=h.device).index_add_(0, receivers, torch.ones_like(receivers, dtype=h.dtype))
+        count = count.clamp_min(1.0)[None, :, None]
+        for edge_mlp, node_mlp in zip(self.edge_updates, self.node_updates):
+            e = edge_mlp(e, h, senders, receivers)
+            agg = torch.zeros_like(h).index_add_(1, receivers, e) / count
+            h = h + node_mlp(torch.cat([h, agg], -1))
+        out = self.decoder(h)
+        b1, b2, rho, w = out[..., 0], out[..., 1], torch.tanh(out[..., 2]), out[..., 3]
+        magnitude = self.magnitude_scale * nn.functional.softplus(w)
+        direction = displacement_direction(b1, b2, rho, normal, self.direction)
+        return direction * magnitude[..., None], (b1, b2, rho, magnitude)

@@ -1,0 +1,238 @@
+"""GenSim: the ARAP stage (Alg. 1-2), the PEN direction (Eq. 1), each loss term (Eq. 2-8), state round trip."""
+
+import math
+
+import pytest
+import torch
+
+from drapebench.geometry.ops import vertex_normals
+from drapebench.physics import Material
+from methods.gensim import losses
+from methods.gensim.arap import ArapConfig, bind, front_aligned, handle_targets, motion_aware_arap, skinned_template
+from methods.gensim.network import PEN, displacement_direction, tangent_basis
+from drapebench.geometry.topology import get_topology
+from tests.meshes import grid_mesh
+
+
+def _sheet(n, size):
+    """A flat n x n grid: vertices (V, 3) float32 tensor and its Topology."""
+    V, F = grid_mesh(n, size)
+    return torch.as_tensor(V, dtype=torch.float32), get_topology(V.astype("float32"), F)
+
+
+def _one_leg_case():
+    """A 'leg' body vertex at the origin moving +x by 10 cm, a static one far away; garment vertices in
+    front of the leg (+x), behind it (-x), beside it (+y), and a pin at the static vertex."""
+    canonical = torch.tensor([[0.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    target = canonical + torch.tensor([[0.1, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    normals = torch.tensor([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    template = torch.tensor([[0.05, 0.0, 0.0], [-0.05, 0.0, 0.0], [0.0, 0.05, 0.0], [0.0, 0.0, 1.02]])
+    return canonical, target, normals, template, torch.tensor([3])
+
+
+@pytest.mark.parametrize("side, handle", [("pushed", 0), ("printed", 1)])
+def test_handles_and_targets_follow_alg2(side, handle):
+    canonical, target, normals, template, pins = _one_leg_case()
+    b = bind(template, canonical, pins)
+    skinned = template.clone()  # pins where the skinning puts them: here, unmoved
+    H, T, d = handle_targets(b, template, canonical, target, normals, skinned, ArapConfig(handle_side=side))
+    expected = torch.zeros(4, dtype=torch.bool)
+    expected[[handle, 3]] = True  # the handle on the chosen side of the moving leg, and the pin
+    assert torch.equal(H, expected)
+    # Alg. 2 line 8: G~ = G + d_hat (|d| - q): the handle lands on the moved body vertex (u is along d)
+    assert torch.allclose(T[handle], target[0], atol=1e-6)
+    assert torch.allclose(d[2], torch.tensor([0.1, 0.0, 0.0]))
+    assert torch.equal(T[3], skinned[3])
+
+
+def test_pin_rule_normal_keeps_the_offset_along_the_target_normal():
+    canonical, target, normals, template, pins = _one_leg_case()
+    b = bind(template, canonical, pins)
+    _, T, _ = handle_targets(b, template, canonical, target, normals, template, ArapConfig(pin_rule="normal"))
+    assert torch.allclose(T[3], target[1] + normals[1] * 0.02, atol=1e-6)
+
+
+def test_arap_without_body_motion_returns_the_template(body_lowres):
+    from drapebench.garments import make_garment
+
+    g = make_garment("skirt", body_lowres)
+    canonical = body_lowres.shaped(g.betas[None])[0][0]
+    b = bind(g.vertices, canonical, g.pins)
+    pose = torch.zeros(1, body_lowres.n_joints, 3)
+    verts, transforms = front_aligned(body_lowres, g.betas, pose)
+    normals = vertex_normals(verts, body_lowres.faces)
+    pins_at = skinned_template(g.vertices, b, body_lowres, g.betas, g.betas, transforms)
+    cfg = ArapConfig()
+    H, T, _ = handle_targets(b, g.vertices, canonical, verts[0], normals[0], pins_at[0], cfg)
+    assert torch.equal(H, b.pin)  # no motion: the pins are the only handles
+    x = motion_aware_arap(g.vertices, g.faces, H, T, verts[0], normals[0], cfg)
+    # within 0.5 mm: the few template vertices behind their nearest body vertex's tangent plane are pushed out
+    assert (x - g.vertices).norm(dim=-1).max() < 5e-4
+    assert (x - g.vertices).norm(dim=-1).median() < 1e-5
+
+
+def test_front_alignment_removes_the_root_motion(body_lowres):
+    pose = torch.zeros(2, body_lowres.n_joints, 3)
+    pose[1, 0] = torch.tensor([0.0, 0.0, 1.2])  # the whole body turned about Z
+    pose[:, 7] = torch.tensor([0.4, 0.0, 0.0])
+    verts, _ = front_aligned(body_lowres, torch.zeros(body_lowres.n_betas), pose)
+    assert torch.allclose(verts[0], verts[1], atol=1e-5)
+    world = body_lowres.forward(None, pose, torch.tensor([[0.0, 0, 0], [1.0, 2.0, 0.0]]))
+    root = world.transforms[:, 0]
+    assert torch.allclose(verts @ root[:, :3, :3].transpose(1, 2) + root[:, None, :3, 3], world.vertices, atol=1e-5)
+
+
+def _random_normals(n=5000):
+    nrm = torch.randn(n, 3)
+    nrm[:200, 2] = 0.0  # body sides: normals with n3 = 0
+    nrm[200:210] = torch.tensor([0.0, 0.0, -1.0])
+    return nrm / nrm.norm(dim=-1, keepdim=True)
+
+
+def test_tangent_direction_lies_in_the_normal_half_space_for_any_input():
+    n = _random_normals()
+    b1, b2, rho = torch.randn(3, len(n)) * 3
+    rho = torch.tanh(rho)
+    rho[:20] = 0.0
+    D = displacement_direction(b1, b2, rho, n, "tangent")
+    assert torch.isfinite(D).all()
+    assert torch.allclose(D.norm(dim=-1), torch.ones(len(n)), atol=1e-5)
+    assert ((D * n).sum(-1) >= -1e-6).all()
+    t1, t2 = tangent_basis(n)
+    assert (t1 * n).sum(-1).abs().max() < 1e-5 and (t2 * n).sum(-1).abs().max() < 1e-5
+
+
+def test_paper_direction_breaks_where_n3_is_zero():
+    n = _random_normals()
+    b1, b2, rho = torch.randn(3, len(n))
+    D = displacement_direction(b1, b2, torch.tanh(rho), n, "paper")
+    bad = ~torch.isfinite(D).all(-1)
+    assert bad[:200].all() and not bad[210:].any()
+    assert ((D[~bad] * n[~bad]).sum(-1) >= -1e-6).all()
+
+
+def test_pen_output_moves_outward_or_along_the_body():
+    verts, topo = _sheet(6, 0.1)
+    V = len(verts)
+    e = topo.edges
+    senders, receivers = torch.cat([e[:, 0], e[:, 1]]), torch.cat([e[:, 1], e[:, 0]])
+    net = PEN(latent=16, geometry=8, steps=2)
+    normal = torch.nn.functional.normalize(torch.randn(2, V, 3), dim=-1)
+    delta, (_, _, rho, w) = net(torch.randn(2, V, PEN.N_NODE), torch.randn(2, len(senders), PEN.N_EDGE), senders, receivers,
+                                verts, torch.randn(1, 30, 3), torch.randint(0, 30, (2, V)), normal)  # fmt: skip
+    assert delta.shape == (2, V, 3) and torch.isfinite(delta).all()
+    assert ((delta * normal).sum(-1) >= -1e-7).all() and (w >= 0).all()
+
+
+# ---------------------------------------------------------------------- losses against hand computations
+def test_restrain_term():
+    verts, topo = _sheet(2, 1.0)  # unit square, 5 edges
+    x = verts.clone()
+    x[1, 0] += 0.1  # vertex 1 moves out along x: the edges at it change
+    phi = ((x[topo.edges[:, 0]] - x[topo.edges[:, 1]]).norm(dim=-1) - topo.rest_edge_lengths).abs()
+    expected = (((phi - 0.01) / 0.02) ** 2).sum() * 7.0
+    assert torch.allclose(losses.restrain(x[None], topo, 0.01, 0.02, 7.0), expected)
+
+
+def test_pin_term_and_its_gradient():
+    x = torch.zeros(1, 4, 3, requires_grad=True)
+    G = torch.ones(1, 4, 3)
+    value = losses.pin(x, G, torch.tensor([1, 2]), 100.0)
+    assert torch.isclose(value, torch.tensor(100.0 * 2 * 3))
+    value.backward()
+    assert torch.equal(x.grad[0, [0, 3]], torch.zeros(2, 3))
+    assert (x.grad[0, [1, 2]] < 0).all()  # the pins are pulled toward G
+
+
+def test_potential_term_pulls_free_vertices_down_only():
+    verts, topo = _sheet(3, 0.1)
+    mat = Material()
+    x = verts.clone()[None].requires_grad_(True)
+    free = torch.ones(len(verts), dtype=torch.bool)
+    free[0] = False
+    value = losses.potential(x, topo, mat, free, 100.0)
+    m = topo.vertex_masses(mat)
+    assert torch.isclose(value, 100.0 * 9.81 * (m * x[0, :, 2])[free].sum(), rtol=1e-5)
+    value.backward()
+    assert x.grad[0, 0].abs().max() == 0 and (x.grad[0, 1:, 2] > 0).all()  # descent moves z down
+
+
+def test_collision_term_pushes_an_inside_vertex_out_along_the_normal():
+    body = torch.tensor([[[0.0, 0.0, 0.0], [5.0, 5.0, 5.0]]])
+    normals = torch.tensor([[[0.0, 0.0, 1.0], [0.0, 0.0, 1.0]]])
+    x = torch.tensor([[[0.1, 0.0, -0.01]]], requires_grad=True)  # 1 cm inside, below the normal's plane
+    value = losses.collision(x, body, normals, 0.003, 100.0)
+    assert torch.isclose(value, torch.tensor(100.0 * (0.003 + 0.01)))
+    value.backward()
+    assert x.grad[0, 0, 2] < 0 and x.grad[0, 0, :2].abs().max() == 0  # descent = +z, out along n
+    outside = torch.tensor([[[0.1, 0.0, 0.05]]])
+    assert losses.collision(outside, body, normals, 0.003, 100.0) == 0
+
+
+def test_bending_and_smoothness_are_zero_on_a_flat_sheet_and_positive_when_folded():
+    verts, topo = _sheet(4, 0.3)
+    mat = Material()
+    flat = verts[None]
+    folded = flat.clone()
+    folded[0, :, 2] = (folded[0, :, 0] - 0.15).clamp_min(0) * 0.8
+    assert losses.bending(flat, topo, mat, 1.0) == 0
+    assert losses.bending(folded, topo, mat, 1.0) > 0
+    # |L x| is not zero at an open sheet's boundary, but folding adds to it and moving the sheet does not
+    assert losses.smoothness(folded, topo, 1.0) > losses.smoothness(flat, topo, 1.0) + 1e-3
+    assert torch.isclose(losses.smoothness(flat + 0.3, topo, 1.0), losses.smoothness(flat, topo, 1.0), rtol=1e-4)
+    # Eq. 4 carries no stiffness: the value does not depend on the material's bending stiffness
+    stiff = Material(bending_multiplier=5000.0)
+    assert torch.isclose(losses.bending(folded, topo, stiff, 1.0), losses.bending(folded, topo, mat, 1.0))
+    assert math.isfinite(float(losses.bending(folded, topo, mat, 1.0)))
+
+
+# ---------------------------------------------------------------------- training, drape, state
+TINY = {"latent": 16, "geometry": 8, "steps": 2, "fabric_mean": 1e-3, "fabric_std": 2e-3, "arap_steps": 3,
+        "train": {"kinds": ["skirt"], "seeds": [1], "resolutions": [0.03], "sequences": 1, "n_frames": 20, "frames_per_sequence": 2}}
+
+
+@pytest.fixture(scope="module")
+def trained(body_lowres):
+    import methods
+    from drapebench.data import TrainData
+
+    m = methods.get("gensim")(TINY)
+    report = m.fit(TrainData(body=body_lowres, material=Material()), {"steps": 3, "batch_size": 2, "lr": 1e-3})
+    return m, report
+
+
+def test_fit_logs_every_term_and_a_finite_loss(trained):
+    _, report = trained
+    assert report.n_steps == 3
+    assert set(report.final_losses) >= {"restrain", "bending", "pin", "potential", "smoothness", "collision"}
+    assert math.isfinite(report.final_losses["loss"])
+
+
+def test_one_model_drapes_any_garment_and_round_trips_its_state(trained, body_lowres):
+    import methods
+    from drapebench.body import make_sequence
+    from drapebench.garments import make_garment
+
+    m, _ = trained
+    seq = make_sequence("kick", 3, seed=0, transition=2)
+    garment = make_garment("shorts", body_lowres, resolution=0.025)  # a kind it never saw
+    out = m.drape(garment, seq)
+    assert out.vertices.shape == (seq.n_frames, garment.n_vertices, 3) and torch.isfinite(out.vertices).all()
+    assert out.extras["arap"].shape == out.vertices.shape and out.extras["handles"][:, garment.pins].all()
+    again = methods.get("gensim")(TINY)
+    again.bind(body_lowres, Material())
+    again.load_state_dict(m.state_dict())
+    assert torch.allclose(again.drape(garment, seq).vertices, out.vertices, atol=1e-6)
+    with pytest.raises(ValueError, match="trained with"):
+        other = methods.get("gensim")({**TINY, "latent": 8})
+        other.bind(body_lowres, Material())
+        other.load_state_dict(m.state_dict())
+
+
+def test_unknown_parameters_are_named():
+    import methods
+
+    with pytest.raises(ValueError, match="unknown gensim parameter"):
+        methods.get("gensim")({"latnet": 3})
+    with pytest.raises(ValueError, match="direction must be one of"):
+        methods.get("gensim")({"direction": "sideways"})
