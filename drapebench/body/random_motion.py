@@ -23,19 +23,14 @@ N_HARMONICS = 4
 TILT = 0.15  # rad, the largest pelvis tilt forwards/backwards and sideways
 
 
-def random_sinusoids(t: np.ndarray, rng: np.random.Generator, n: int, freq_range: tuple[float, float],
-                     rms: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``n`` random smooth signals, each a sum of :data:`N_HARMONICS` sinusoids of RMS ``rms``.
-
-    Returns amplitudes (n, K), angular frequencies (n, K) rad/s drawn from ``freq_range`` (Hz), phases
-    (n, K) and the signals' value at times ``t`` (T,) s, (T, n). Slowing a signal is multiplying its
-    frequencies, see :func:`evaluate`.
-    """
+def random_sinusoids(rng: np.random.Generator, n: int, freq_range: tuple[float, float],
+                     rms: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Amplitudes, angular frequencies (rad/s, drawn from ``freq_range`` in Hz) and phases, each (n, K), of
+    ``n`` random signals, each a sum of K = :data:`N_HARMONICS` sinusoids with RMS ``rms`` (see :func:`evaluate`)."""
     amps = rng.dirichlet(np.ones(N_HARMONICS), n)
     amps *= rms * np.sqrt(2.0) / np.linalg.norm(amps, axis=1, keepdims=True)  # RMS of sum a_k sin = |a| / sqrt 2
     omega = 2 * np.pi * rng.uniform(*freq_range, (n, N_HARMONICS))
-    phases = rng.uniform(0, 2 * np.pi, (n, N_HARMONICS))
-    return amps, omega, phases, evaluate(t, amps, omega, phases)
+    return amps, omega, rng.uniform(0, 2 * np.pi, (n, N_HARMONICS))
 
 
 def evaluate(t: np.ndarray, amps: np.ndarray, omega: np.ndarray, phases: np.ndarray) -> np.ndarray:
@@ -50,7 +45,7 @@ def squashed(t: np.ndarray, rng: np.random.Generator, lo: np.ndarray, hi: np.nda
     if not ((lo < centre) & (centre < hi)).all():
         raise ValueError("random motion: every centre must lie strictly inside its range")
     span = hi - lo
-    amps, omega, phases, _ = random_sinusoids(t, rng, len(lo), freq_range, rms)
+    amps, omega, phases = random_sinusoids(rng, len(lo), freq_range, rms)
     vel = (amps * omega).sum(-1)  # bounds of |x'| and |x''| per signal
     acc = (amps * omega**2).sum(-1)
     vel_bound = span * SQUASH_SLOPE * vel
