@@ -13,7 +13,9 @@ from typing import Any, Mapping
 from methods.gensim.losses import WEIGHTS
 
 TRAIN_DEFAULTS = dict(
-    kinds=("tshirt", "tank", "longsleeve", "skirt", "skirt_flared", "skirt_straight"),  # tops and skirts (paper Sec. 4)
+    # tops and skirts (paper Sec. 4) as [kind, factory parameters]: tshirt, tank, longsleeve, skirt, the
+    # flared and the straight skirt of conf/garment/skirt_flared.yaml and skirt_straight.yaml
+    garments=(("tshirt", {}), ("tank", {}), ("longsleeve", {}), ("skirt", {}), ("skirt", {"flare": 0.3}), ("skirt", {"flare": 0.02})),
     seeds=(1, 2),  # garment size variations (drapebench.garments.factory: ease x0.9-1.1, length +-3 cm)
     resolutions=(0.015, 0.022),  # target edge length (m): two mesh resolutions per garment
     sequences=2,  # random-motion sequences per garment

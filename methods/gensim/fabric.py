@@ -18,10 +18,10 @@ import torch
 from drapebench.cache import cache_dir, content_hash, write_json
 
 log = logging.getLogger("drapebench")
-# (garment kind, size seed, training motion): seed 7 gives other sizes than the default garments, and
-# none of these motions is a held-out test motion.
-FIT_SCENES = (("tshirt", 7, "walk"), ("tank", 7, "jump"), ("longsleeve", 7, "arm_raise"), ("skirt", 7, "walk"), ("skirt_flared", 7, "twist"),
-              ("skirt_straight", 7, "squat"), ("tank", 7, "run"))
+# (garment kind, factory parameters, size seed, training motion): seed 7 gives other sizes than the
+# default garments, and none of these motions is a held-out test motion.
+FIT_SCENES = (("tshirt", {}, 7, "walk"), ("tank", {}, 7, "jump"), ("longsleeve", {}, 7, "arm_raise"), ("skirt", {}, 7, "walk"),
+              ("skirt", {"flare": 0.3}, 7, "twist"), ("skirt", {"flare": 0.02}, 7, "squat"), ("tank", {}, 7, "run"))
 N_FIT_FRAMES = 50
 FRAMES_PER_SCENE = 10
 
@@ -48,20 +48,20 @@ def fit_fabric(body_name: str = "anny_lowres", solver: str = "vbd", n_frames: in
     from drapebench.errors import DrapeFailed
 
     changes, used, skipped = [], [], []
-    for kind, seed, motion in scenes:
+    for kind, params, seed, motion in scenes:
         if len(used) * FRAMES_PER_SCENE >= N_FIT_FRAMES:
             break
-        garment = make_garment(kind, body, seed=seed)
+        garment = make_garment(kind, body, seed=seed, **params)
         seq = make_sequence(motion, n_frames, seed=seed)
         try:
             x = simulate(garment, seq, body, solver=solver)
         except DrapeFailed as err:
             log.warning("fabric fit: skipping %s on %s: %s", kind, motion, err)
-            skipped.append([kind, seed, motion])
+            skipped.append([kind, params, seed, motion])
             continue
         frames = np.linspace(seq.n_transition, seq.n_frames - 1, FRAMES_PER_SCENE).round().astype(int)
         changes.append(edge_change(x[frames].to(garment.topology.dtype), garment.topology).reshape(-1))
-        used.append([kind, seed, motion])
+        used.append([kind, params, seed, motion])
     if len(used) * FRAMES_PER_SCENE < N_FIT_FRAMES:
         raise RuntimeError(f"fabric fit: only {len(used) * FRAMES_PER_SCENE} of {N_FIT_FRAMES} frames simulated (skipped {skipped}); "
                            "add scenes to FIT_SCENES or use solver='style3d'")  # fmt: skip

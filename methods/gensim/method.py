@@ -151,7 +151,8 @@ class GenSim(DrapingMethod):
         from drapebench.garments import make_garment
 
         tp, body = self.p["train"], self.body
-        garments = [make_garment(k, body, seed=s, resolution=r) for k in tp["kinds"] for s in tp["seeds"] for r in tp["resolutions"]]
+        garments = [make_garment(kind, body, seed=s, **{**dict(params), "resolution": r})
+                    for kind, params in tp["garments"] for s in tp["seeds"] for r in tp["resolutions"]]  # fmt: skip
         graphs = [garment_graph(g, body, self.material) for g in garments]
         key = content_hash("gensim_frames_v2", tp, seed, self.p["supervised"], self.material, dict(body.state_dict()), self.arap, [(g.vertices, g.faces, g.pins) for g in garments])
         path = cache_dir("gensim") / f"frames_{key}.pt"

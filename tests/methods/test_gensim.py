@@ -188,7 +188,7 @@ def test_bending_and_smoothness_are_zero_on_a_flat_sheet_and_positive_when_folde
 
 # ---------------------------------------------------------------------- training, drape, state
 TINY = {"latent": 16, "geometry": 8, "steps": 2, "fabric_mean": 1e-3, "fabric_std": 2e-3, "arap_steps": 3,
-        "train": {"kinds": ["skirt"], "seeds": [1], "resolutions": [0.03], "sequences": 1, "n_frames": 20, "frames_per_sequence": 2}}
+        "train": {"garments": [["skirt", {}]], "seeds": [1], "resolutions": [0.03], "sequences": 1, "n_frames": 20, "frames_per_sequence": 2}}
 
 
 @pytest.fixture(scope="module")
