@@ -56,7 +56,7 @@ import time
 import numpy as np
 import torch
 
-from drapebench.body.lbs import lbs
+from drapebench.body.skinning import nearest_body_vertices, nearest_weights, skin_then_translate
 from drapebench.cache import content_hash
 from drapebench.geometry.ops import vertex_normals
 from drapebench.geometry.proximity import culled_body_vertices, nearest_body_vertex
@@ -65,22 +65,12 @@ from methods.base import DrapeResult, DrapingMethod, FitReport
 from methods.gaps import losses
 from methods.gaps.config import gaps_params
 from methods.gaps.network import GapsNet
-from methods.gaps.skinning import nearest_indices, nearest_weights, rbf_weights, smoothed_weights
+from methods.gaps.skinning import rbf_weights, smoothed_weights
 
 
 def root_velocity(seq) -> torch.Tensor:
     """(T, 3) root translation velocity of a sequence in m/s (backward difference; 0 at the first frame)."""
     return torch.cat([torch.zeros(1, 3, dtype=seq.trans.dtype), (seq.trans[1:] - seq.trans[:-1]) * seq.fps])
-
-
-def skin_then_translate(points: torch.Tensor, weights: torch.Tensor, transforms: torch.Tensor, trans: torch.Tensor) -> torch.Tensor:
-    """GAPS's skinning order: LBS with the joint transforms (..., J, 4, 4) minus the root translation trans
-    (..., 3) m, then the translation added. Equal to plain LBS when the weight rows sum to one; with the
-    trainable, unconstrained weights it keeps a row-sum drift from scaling the distance travelled
-    (a run's 9.7 m) into the garment, and the weights' gradient free of it. points (..., V, 3) -> (..., V, 3)."""
-    local = transforms.clone()
-    local[..., :3, 3] -= trans[..., None, :]
-    return lbs(points, weights, local) + trans[..., None, :]
 
 
 class GAPS(DrapingMethod):
@@ -106,11 +96,11 @@ class GAPS(DrapingMethod):
             rest_body = body.shaped(garment.betas[None, : body.n_betas])[0][0]
         self.template = garment.vertices.to(body.dtype)
         self.topology = garment.topology
-        self.nn_rest = nearest_indices(self.template, rest_body)
+        self.nn_rest = nearest_body_vertices(self.template, body, garment.betas)
         if p["skinning"] == "rbf":
             w = rbf_weights(self.template, rest_body, body.weights, p["rbf_k"])
         else:
-            w = nearest_weights(self.template, rest_body, body.weights)
+            w = nearest_weights(self.nn_rest, body)
             if p["skinning"] == "smoothed":
                 w = smoothed_weights(w, garment.topology, p["smooth_iterations"])
         if self.weights is None or self.weights.shape != w.shape:

@@ -1,10 +1,9 @@
-"""Garment skinning weights from the body: GAPS's RBF body participation, SNUG's nearest vertex,
-NCS's smoothed nearest vertex."""
+"""Garment skinning weights from the body: GAPS's RBF body participation and NCS's smoothing of the
+nearest-vertex weights (the nearest-vertex weights themselves: ``drapebench.body.skinning``)."""
 
 from __future__ import annotations
 
 import torch
-from scipy.spatial import cKDTree
 
 
 def rbf_weights(garment_rest: torch.Tensor, body_rest: torch.Tensor, body_weights: torch.Tensor, k: float = 0.25, chunk: int = 512) -> torch.Tensor:
@@ -22,17 +21,6 @@ def rbf_weights(garment_rest: torch.Tensor, body_rest: torch.Tensor, body_weight
         w = P @ W
         out.append(w / w.sum(1, keepdim=True))
     return torch.cat(out).to(body_weights.dtype)
-
-
-def nearest_indices(garment_rest: torch.Tensor, body_rest: torch.Tensor) -> torch.Tensor:
-    """(V,) index of the nearest body vertex of each garment vertex."""
-    _, idx = cKDTree(body_rest.detach().cpu().numpy()).query(garment_rest.detach().cpu().numpy())
-    return torch.as_tensor(idx, dtype=torch.long)
-
-
-def nearest_weights(garment_rest: torch.Tensor, body_rest: torch.Tensor, body_weights: torch.Tensor) -> torch.Tensor:
-    """SNUG: each garment vertex copies its nearest body vertex's weights. (V, J)."""
-    return body_weights[nearest_indices(garment_rest, body_rest)].clone()
 
 
 def smoothed_weights(weights: torch.Tensor, topology, iterations: int = 10) -> torch.Tensor:

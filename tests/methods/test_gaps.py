@@ -6,13 +6,11 @@ import torch
 
 import methods
 from drapebench.body import make_sequence
-from drapebench.body.lbs import lbs
 from drapebench.garments import make_garment
 from drapebench.geometry.proximity import nearest_body_vertex
 from drapebench.physics import Material
 from drapebench.data import TrainData
 from methods.gaps.config import TRAIN_DEFAULTS
-from methods.gaps.method import skin_then_translate
 from methods.gaps.skinning import rbf_weights, smoothed_weights
 
 QUICK = {"epochs": 1, "batch_size": 4, "log_every": 1, "checkpoint_every": 1000}
@@ -136,22 +134,6 @@ def test_rbf_weights_match_brute_force_and_sum_to_one(body_lowres):
         assert torch.allclose(w[i].double(), ref / ref.sum(), atol=1e-6)
     s = smoothed_weights(w, g.topology, 10)
     assert torch.allclose(s.sum(1), torch.ones(len(s)), atol=1e-5)
-
-
-def test_translation_is_added_after_skinning(body_lowres):
-    seq = make_sequence("walk", 8, seed=3)
-    assert seq.trans[-1].norm() > 0.1  # the body travels
-    tf, trans = seq.transforms(body_lowres), seq.trans.to(body_lowres.dtype)
-    points = body_lowres.v_template[::50]
-    w = body_lowres.weights[::50]
-    assert torch.allclose(skin_then_translate(points, w, tf, trans), lbs(points, w, tf), atol=1e-5)  # rows sum to one
-    drifted = 1.1 * w  # trainable weights are unconstrained: a row-sum drift must not scale the distance travelled
-    local = tf.clone()
-    local[..., :3, 3] -= trans[:, None]
-    got = skin_then_translate(points, drifted, tf, trans)
-    assert torch.allclose(got, lbs(points, drifted, local) + trans[:, None], atol=1e-5)
-    plain = lbs(points, drifted, tf)  # translation inside the transforms: scaled by the row sum
-    assert torch.allclose(plain - got, 0.1 * trans[:, None].expand_as(got), atol=1e-5)
 
 
 def test_ablations_change_what_they_claim(scene):
