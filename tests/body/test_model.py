@@ -122,3 +122,18 @@ def test_bad_pose_input_is_reported(body_lowres):
         body_lowres.forward(None, pose)
     with pytest.raises(ValueError, match="betas"):
         body_lowres.forward(torch.zeros(1, 50))
+
+
+@pytest.mark.parametrize("damage", ["truncate", "flip"])
+def test_a_damaged_body_file_fails_naming_the_file_and_the_fix(damage, tmp_path):
+    from drapebench.body.model import BODY_DIR
+
+    data = bytearray((BODY_DIR / "anny_lowres.npz").read_bytes())
+    if damage == "truncate":
+        data = data[: len(data) // 2]
+    else:
+        data[len(data) // 2] ^= 0x01
+    path = tmp_path / "body.npz"
+    path.write_bytes(bytes(data))
+    with pytest.raises(ValueError, match="body.npz is truncated or corrupt.*drapebench.body.bake"):
+        load_body(path)
