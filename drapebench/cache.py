@@ -1,24 +1,34 @@
-"""Content hashing, cache folders and atomic file writes shared by every cached artefact.
+"""Content hashing, cache folders, atomic file writes and the one cache API every cached artefact uses.
 
-Everything the suite builds (body bakes, datasets, topologies, reference simulations,
-checkpoints) is stored under :func:`cache_dir` with a name derived from :func:`content_hash`
-of what produced it, and written through :func:`atomic_write` so an interrupted write never
-leaves a file that looks complete.
+Everything the suite builds (garments, SDF grids, topologies, reference simulations, datasets,
+checkpoints, evaluations) goes through a :class:`Cache`: the file name is a :func:`content_hash`
+of a format version and everything that produced it (a body by its arrays, :func:`body_key`),
+the file is written through :func:`atomic_write` and sealed with a SHA-256 sidecar
+(``<file>.sha256``), and a file whose sidecar is missing or does not match (truncated, corrupt,
+foreign, interrupted) is never read: it is rebuilt with a warning naming it. A sidecar rather
+than an embedded header keeps every format (npz, npy, pickle, torch, h5) readable by its own
+library and checks the whole file, whatever the reader would have noticed. Inside
+:func:`forcing` every entry is rebuilt the first time a run asks for it.
 """
 
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import hashlib
 import json
+import logging
 import os
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any, Callable, Iterator
 
 import numpy as np
 
 PROJECT_ROOT = Path(__file__).resolve().parent.parent
+
+log = logging.getLogger(__name__)
 
 
 def data_dir() -> Path:
@@ -133,3 +143,116 @@ def _json_default(obj: Any) -> Any:
     if isinstance(obj, Path):
         return str(obj)
     raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
+
+
+_BODY_KEYS: dict[int, tuple] = {}
+
+
+def body_key(body) -> str:
+    """Content hash of a body model's arrays (template, shape and pose blend shapes, joint regressor,
+    skinning weights, faces, kinematic tree), memoised per object: the body in a cache key, never its name."""
+    hit = _BODY_KEYS.get(id(body))
+    if hit is None or hit[0] is not body:
+        parts = [body.v_template, body.shapedirs, body.J_regressor, body.weights, body.faces, list(body.parents)]
+        if getattr(body, "posedirs", None) is not None:
+            parts.append(body.posedirs)
+        hit = (body, content_hash(*parts))
+        _BODY_KEYS[id(body)] = hit
+    return hit[1]
+
+
+_FORCED: contextvars.ContextVar[set | None] = contextvars.ContextVar("drapebench_cache_forced", default=None)
+
+
+@contextlib.contextmanager
+def forcing(enabled: bool = True) -> Iterator[None]:
+    """Inside the block every cache entry is rebuilt the first time it is asked for, then reused
+    (``force=true`` of a run). ``enabled=False`` leaves the caches as they are."""
+    token = _FORCED.set(set()) if enabled else None
+    try:
+        yield
+    finally:
+        if token is not None:
+            _FORCED.reset(token)
+
+
+def _seal_path(path: Path) -> Path:
+    return path.with_name(path.name + ".sha256")
+
+
+@dataclass(frozen=True)
+class Cache:
+    """One kind of cached file (a sub-folder of ``data/cache``) at format ``version``.
+
+    ``path(*key)`` names an entry by content hash; ``load(path, reader)`` returns ``reader(path)`` or
+    None when the entry is missing, unsealed, fails its checksum, cannot be read or is rejected by
+    the reader (returns None); ``store(path, writer)`` writes it atomically and seals it;
+    ``get_or_build`` does all three. Bump ``version`` when the stored format or the producing code
+    changes: the key changes and old files are never read.
+    """
+
+    kind: str
+    version: int | str
+
+    def path(self, *key_parts: Any, prefix: str = "", suffix: str = ".npz") -> Path:
+        """``data/cache/<kind>/<prefix>_<content_hash(version, *key_parts)><suffix>``."""
+        name = content_hash(self.version, *key_parts)
+        return cache_dir(self.kind) / (f"{prefix}_{name}{suffix}" if prefix else f"{name}{suffix}")
+
+    def load(self, path: str | os.PathLike, reader: Callable[[Path], Any], force: bool = False) -> Any:
+        """``reader(path)`` for a sealed, intact entry; None (with a warning naming the file if one
+        exists but is unusable) to rebuild it. ``force`` (or an enclosing :func:`forcing` that has not
+        rebuilt this entry yet) returns None without reading."""
+        path = Path(path)
+        forced = _FORCED.get()
+        if force or (forced is not None and path not in forced) or not path.exists():
+            return None
+        seal = _seal_path(path)
+        if not seal.exists():
+            problem = "has no checksum sidecar (foreign file or interrupted write)"
+        elif seal.read_text().strip() != file_checksum(path):
+            problem = "fails its checksum (truncated or corrupt)"
+        else:
+            try:
+                value = reader(path)
+            except Exception as err:  # a sealed file the reader rejects (written by other code)
+                problem = f"cannot be read ({type(err).__name__}: {err})"
+            else:
+                if value is not None:
+                    return value
+                problem = "does not hold what was asked for"
+        log.warning("%s cache file %s %s; rebuilding it", self.kind, path, problem)
+        return None
+
+    def store(self, path: str | os.PathLike, writer: Callable[[Path], None]) -> Path:
+        """Write an entry with ``writer(tmp_path)`` atomically, then seal it; returns ``path``."""
+        path = Path(path)
+        seal = _seal_path(path)
+        seal.unlink(missing_ok=True)
+        with atomic_write(path, mode=None) as tmp:
+            writer(tmp)
+        with atomic_write(seal, "w") as f:
+            f.write(file_checksum(path))
+        forced = _FORCED.get()
+        if forced is not None:
+            forced.add(path)
+        return path
+
+    def get_or_build(
+        self,
+        path: str | os.PathLike,
+        build: Callable[[], Any],
+        write: Callable[[Any, Path], None],
+        read: Callable[[Path], Any],
+        *,
+        force: bool = False,
+        enabled: bool = True,
+    ) -> Any:
+        """The entry at ``path`` if it loads (see :meth:`load`), else ``build()`` stored with
+        ``write(value, tmp_path)``; ``enabled=False`` builds without reading or writing."""
+        value = self.load(path, read, force) if enabled else None
+        if value is None:
+            value = build()
+            if enabled:
+                self.store(path, lambda tmp: write(value, tmp))
+        return value

@@ -12,6 +12,7 @@ import json
 import logging
 import os
 import time
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +21,7 @@ import torch
 from omegaconf import DictConfig, OmegaConf
 
 from drapebench.body.dataset import dataset_hash
-from drapebench.cache import PROJECT_ROOT, atomic_write, cache_dir, content_hash, file_checksum, write_json
+from drapebench.cache import PROJECT_ROOT, Cache, atomic_write, body_key, content_hash, forcing, write_json
 from drapebench.errors import DrapeFailed
 from drapebench.results import environment, git_commit, write_prediction
 from drapebench.train.checkpoint import write_losses
@@ -65,21 +66,8 @@ def _method_class(cfg: DictConfig):
     return methods.get(impl)
 
 
-def _valid(path: Path) -> bool:
-    """True if cache file ``path`` exists and matches the SHA-256 in its ``.sha256`` sidecar."""
-    sums = path.with_name(path.name + ".sha256")
-    if not path.exists():
-        return False
-    if sums.exists() and sums.read_text().strip() == file_checksum(path):
-        return True
-    log.warning("cache file %s fails its checksum; rebuilding it", path)
-    return False
-
-
-def _seal(path: Path) -> None:
-    """Write the checksum sidecar that :func:`_valid` checks (after ``path`` is complete)."""
-    with atomic_write(path.with_name(path.name + ".sha256"), "w") as f:
-        f.write(file_checksum(path))
+CHECKPOINTS = Cache("checkpoints", 1)
+EVALUATIONS = Cache("evaluations", 1)
 
 
 def drape_ms_per_frame(timings_ms: dict, drape_s: float, n_frames: int) -> float:
@@ -99,11 +87,10 @@ def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir
     ``fit`` as the train config's ``log_dir`` entry); a loaded checkpoint writes its saved one."""
     data_key = dataset_hash(train_cfg["dataset"]) if train_cfg.get("dataset") else None
     scene_garment = None if method.generic else (garment.vertices, garment.faces)  # one model for any garment: not keyed by it
-    key = content_hash(OmegaConf.to_container(cfg.method, resolve=True), train_cfg, data_key, scene_garment,
-                       cfg.body.name, OmegaConf.to_container(cfg.material, resolve=True))  # fmt: skip
-    path = cache_dir("checkpoints") / f"{cfg.method.name}_{key}.pt"
-    if not cfg.force and _valid(path):
-        state = torch.load(path, map_location="cpu", weights_only=False)
+    path = CHECKPOINTS.path(OmegaConf.to_container(cfg.method, resolve=True), train_cfg, data_key, scene_garment,
+                            body_key(data.body), OmegaConf.to_container(cfg.material, resolve=True), prefix=cfg.method.name, suffix=".pt")  # fmt: skip
+    state = CHECKPOINTS.load(path, partial(torch.load, map_location="cpu", weights_only=False), force=bool(cfg.force))
+    if state is not None:
         method.bind(data.body, data.material)
         method.load_state_dict(state["method"])
         log.info("loaded checkpoint %s (trained in %.1f s)", path.name, state["train_s"])
@@ -114,9 +101,7 @@ def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir
     state = method.state_dict()
     if not state:
         return report.train_s, None
-    with atomic_write(path, mode=None) as tmp:
-        torch.save({"method": state, "train_s": report.train_s, "history": report.history}, tmp)
-    _seal(path)
+    CHECKPOINTS.store(path, lambda tmp: torch.save({"method": state, "train_s": report.train_s, "history": report.history}, tmp))
     return report.train_s, str(path)
 
 
@@ -133,20 +118,24 @@ def _evaluate(cfg: DictConfig, garment, seq, body, prediction, reference, materi
     from drapebench.metrics import evaluate
 
     opts = {"skip_transition": bool(cfg.eval.skip_transition), "energies": bool(cfg.eval.energies)}
-    key = content_hash(_metrics_code_hash(), prediction, reference, garment.vertices, garment.faces, seq.betas,
-                       seq.poses, seq.trans, seq.n_transition, cfg.body.name, body.v_template, material, opts)  # fmt: skip
-    path = cache_dir("evaluations") / f"{garment.kind}_{seq.name}_{key}.npz"
-    if not cfg.force and _valid(path):
-        with np.load(path) as z:
-            summary = json.loads(str(z["summary"]))
+    path = EVALUATIONS.path(_metrics_code_hash(), prediction, reference, garment.vertices, garment.faces, seq.betas, seq.poses,
+                            seq.trans, seq.n_transition, body_key(body), material, opts, prefix=f"{garment.kind}_{seq.name}")  # fmt: skip
+
+    def read(p):
+        with np.load(p) as z:
             columns = json.loads(str(z["columns"]))
-            return summary, pd.DataFrame({c: z[f"col_{i}"] for i, c in enumerate(columns)})
-    summary, frames = evaluate(garment, seq, body, prediction, reference=reference, material=material, **opts)
-    with atomic_write(path) as f:
-        np.savez(f, summary=np.array(json.dumps(summary, default=float)), columns=np.array(json.dumps(list(frames.columns))),
-                 **{f"col_{i}": frames[c].to_numpy() for i, c in enumerate(frames.columns)})  # fmt: skip
-    _seal(path)
-    return summary, frames
+            return json.loads(str(z["summary"])), pd.DataFrame({c: z[f"col_{i}"] for i, c in enumerate(columns)})
+
+    def write(value, p):
+        summary, frames = value
+        with open(p, "wb") as f:
+            np.savez(f, summary=np.array(json.dumps(summary, default=float)), columns=np.array(json.dumps(list(frames.columns))),
+                     **{f"col_{i}": frames[c].to_numpy() for i, c in enumerate(frames.columns)})  # fmt: skip
+
+    def build():
+        return evaluate(garment, seq, body, prediction, reference=reference, material=material, **opts)
+
+    return EVALUATIONS.get_or_build(path, build, write, read, force=bool(cfg.force))
 
 
 def _reference(cfg: DictConfig, garment, seq, body, material):
@@ -175,7 +164,8 @@ def run(cfg: DictConfig, out_dir: str | Path | None = None) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     (out / "failed.json").unlink(missing_ok=True)
     try:
-        return _run(cfg, out)
+        with forcing(bool(cfg.force)):
+            return _run(cfg, out)
     except DrapeFailed as err:
         if getattr(cfg.on_failure, "name", cfg.on_failure) != "record":
             raise
@@ -206,7 +196,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     t = time.perf_counter()
     body = load_body(cfg.body.name, device=cfg.device)
     material = Material.from_config(OmegaConf.to_container(cfg.material, resolve=True))
-    garment = make_garment(cfg.garment.kind, body, seed=int(cfg.garment.seed), cache=not cfg.force, **cfg.garment.params)
+    garment = make_garment(cfg.garment.kind, body, seed=int(cfg.garment.seed), **cfg.garment.params)
     m = cfg.motion
     seq = make_sequence(m.name, int(m.n_frames), float(m.fps), int(m.seed), betas=None if m.betas is None else list(m.betas),
                         transition=int(m.transition), split="test", **m.params)  # fmt: skip

@@ -21,7 +21,7 @@ import numpy as np
 
 from drapebench.body.motions import MOTION_VERSION, MOTIONS, NAMED_MOTIONS, split_motions
 from drapebench.body.sequence import DEFAULT_TRANSITION, BodySequence, make_sequence
-from drapebench.cache import atomic_write, content_hash, data_dir
+from drapebench.cache import Cache, content_hash, data_dir
 from drapebench.progress import progress
 
 # Split by motion kind: kick and stress never appear in training sets; static (a held pose) is in neither.
@@ -59,6 +59,7 @@ class DatasetSpec:
         return content_hash(asdict(self), MOTION_VERSION)
 
 
+DATASET_FILES = Cache("datasets", 1)  # named files in data/datasets, checked by the spec hash they store
 DATASETS: dict[str, DatasetSpec] = {
     "train_small": DatasetSpec(TRAIN_MOTIONS, per_motion=2, n_frames=90, split="train", seed=0),
     "train": DatasetSpec(TRAIN_MOTIONS, per_motion=8, n_frames=150, split="train", seed=0),
@@ -112,28 +113,35 @@ def dataset_hash(name_or_spec) -> str:
     return _resolve(name_or_spec)[1].hash()
 
 
-def _is_current(path: Path, spec_hash: str) -> bool:
-    try:
-        with h5py.File(path, "r") as f:
-            return f.attrs.get("spec_hash") == spec_hash and f.attrs.get("complete", False)
-    except OSError:  # missing, truncated or corrupt file
-        return False
+def _is_current(path: Path, spec_hash: str, force: bool = False) -> bool:
+    """True if ``path`` is a sealed, intact dataset built from ``spec_hash`` (else a warning names what is wrong)."""
+
+    def read(p) -> bool | None:
+        with h5py.File(p, "r") as f:
+            current = f.attrs.get("spec_hash") == spec_hash and f.attrs.get("format") == DATASET_FILES.version
+            return True if current and f.attrs.get("complete", False) else None
+
+    return bool(DATASET_FILES.load(path, read, force))
 
 
 def build_dataset(name_or_spec, force: bool = False, path: Path | None = None) -> Path:
     """Build a named dataset (or a :class:`DatasetSpec`) into h5 unless an identical one exists; returns its path."""
     name, spec = _resolve(name_or_spec)
     path = Path(path) if path is not None else dataset_path(name)
-    if not force and _is_current(path, spec.hash()):
+    if _is_current(path, spec.hash(), force):
         return path
     seqs = spec_sequences(spec)
-    with atomic_write(path, mode=None) as tmp, h5py.File(tmp, "w") as f:
-        f.attrs["spec"] = json.dumps(asdict(spec))
-        f.attrs["spec_hash"] = spec.hash()
-        for seq in seqs:
-            seq.write_h5(f.create_group(seq.name))
-        f.attrs["complete"] = True
-    return path
+
+    def write(tmp) -> None:
+        with h5py.File(tmp, "w") as f:
+            f.attrs["spec"] = json.dumps(asdict(spec))
+            f.attrs["spec_hash"] = spec.hash()
+            f.attrs["format"] = DATASET_FILES.version
+            for seq in seqs:
+                seq.write_h5(f.create_group(seq.name))
+            f.attrs["complete"] = True
+
+    return DATASET_FILES.store(path, write)
 
 
 def check_complete(f: h5py.File) -> None:

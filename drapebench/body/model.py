@@ -8,6 +8,8 @@ parent -> child as in SMPL; ``pose = 0`` is the rest pose (the Anny A-pose for b
 from __future__ import annotations
 
 import pickle
+import zipfile
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -309,8 +311,14 @@ class _SMPLUnpickler(pickle.Unpickler):
 
 def _read_model_file(path: Path) -> dict:
     if path.suffix == ".npz":
-        with np.load(path, allow_pickle=False) as z:
-            d = {k: z[k] for k in z.files}
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                d = {k: z[k] for k in z.files}
+        except (zipfile.BadZipFile, zlib.error, OSError, EOFError, ValueError) as err:
+            raise ValueError(
+                f"{path} is truncated or corrupt ({type(err).__name__}: {err}); restore a shipped body with "
+                f"`git checkout -- {path}` or bake it again with `python -m drapebench.body.bake`"
+            ) from err
     elif path.suffix in (".pkl", ".pickle"):
         with open(path, "rb") as f:
             d = _SMPLUnpickler(f, encoding="latin1").load()

@@ -22,7 +22,7 @@ import numpy as np
 import torch
 from scipy.spatial import cKDTree
 
-from drapebench.cache import atomic_write, cache_dir, content_hash
+from drapebench.cache import Cache, body_key
 from drapebench.garments.fields import SDF_BAND, closed_field, loft_field, marching_cubes, signed_distance_grid
 from drapebench.garments.garment import Garment
 from drapebench.garments.mesh_ops import cut_by_field, isotropic_remesh, keep_component_near
@@ -34,6 +34,18 @@ LOOSE = ("skirt", "dress", "gown")
 LEGS = ("pants", "shorts")
 GARMENT_KINDS = TOPS + LOOSE + LEGS
 VERSION = 7  # bump to invalidate cached garments when the construction changes
+GARMENTS = Cache("garments", VERSION)
+
+
+def _write_pickle(rec: dict, path) -> None:
+    with open(path, "wb") as f:
+        pickle.dump(rec, f)
+
+
+def _read_pickle(path) -> dict:
+    with open(path, "rb") as f:
+        return pickle.load(f)
+
 
 DEFAULTS = {
     "tshirt": dict(ease=0.02, length=0.8, sleeve=0.45, closing=0.04, neck_drop=0.035),
@@ -193,25 +205,17 @@ def make_garment(kind: str, body, betas=None, seed: int = 0, name: str | None = 
     """
     p = garment_params(kind, seed, **params)
     betas_t = torch.zeros(body.n_betas) if betas is None else torch.as_tensor(betas, dtype=torch.float32).reshape(-1)
-    key = content_hash(VERSION, kind, p, betas_t, body.v_template, body.shapedirs, body.J_regressor, body.faces)
-    path = cache_dir("garments") / f"{kind}_{key}.pkl"
-    rec = None
-    if cache and path.exists():
-        try:
-            with open(path, "rb") as f:
-                rec = pickle.load(f)
-        except (OSError, pickle.UnpicklingError, EOFError):
-            rec = None
-    if rec is None:
+    path = GARMENTS.path(kind, p, betas_t, body_key(body), prefix=kind, suffix=".pkl")
+
+    def build() -> dict:
         V, F, body_v, J, hip_z, ankle_z = _build(kind, body, betas_t, p, seed)
         report = validate_garment(V, F, body_v, body.faces.numpy(), target_edge=p["resolution"],
                                   expected_loops=EXPECTED_LOOPS[kind], sections=_sections(kind, V, hip_z, ankle_z, p["length"]))  # fmt: skip
         if not report.ok:
             raise ValueError(f"{kind} on {body.name} (betas {betas_t[:4].tolist()}, params {p}) failed validation:\n{report}")
-        rec = dict(V=V.astype(np.float32), F=F, pins=_pins(kind, V, F, J), stats=report.stats)
-        if cache:
-            with atomic_write(path) as f:
-                pickle.dump(rec, f)
+        return dict(V=V.astype(np.float32), F=F, pins=_pins(kind, V, F, J), stats=report.stats)
+
+    rec = GARMENTS.get_or_build(path, build, _write_pickle, _read_pickle, enabled=cache)
     return Garment(
         name=name or kind, kind=kind, vertices=torch.as_tensor(rec["V"]), faces=torch.as_tensor(rec["F"]),
         pins=torch.as_tensor(rec["pins"], dtype=torch.long), topology=get_topology(rec["V"], rec["F"]),

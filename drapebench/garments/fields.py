@@ -12,10 +12,10 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 from scipy.spatial import ConvexHull
 
-from drapebench.cache import atomic_write, cache_dir, content_hash
+from drapebench.cache import Cache
 
 SDF_BAND = (-0.015, 0.055)  # (m) where the grid SDF is exact; elsewhere it is a bound-respecting estimate
-_SDF_VERSION = 2
+SDF_GRIDS = Cache("sdf", 2)  # bump when the grid construction changes
 
 
 @dataclass
@@ -109,25 +109,28 @@ def signed_distance_grid(vertices: np.ndarray, faces: np.ndarray, h: float, leve
         levels = max(2, int(round(np.log2(0.04 / h))) + 1)
     grid = body_grid(vertices, h, multiple=2 ** (levels - 1))
     V, F = vertices.astype(np.float64), faces.astype(np.int64)
-    key = content_hash(_SDF_VERSION, V.astype(np.float32), F, h, levels, SDF_BAND)
-    path = cache_dir("garments") / f"sdf_{key}.npy"
-    if path.exists():
-        try:
-            sdf = np.load(path)
-            if sdf.shape == grid.shape:
-                return grid, sdf.astype(np.float64)
-        except (OSError, ValueError):
-            pass  # corrupt cache entry: recompute
-    step = 2 ** (levels - 1)
-    coarse = Grid(grid.lo, h * step, tuple((n - 1) // step + 1 for n in grid.shape))
-    sdf = _exact_sdf(coarse.points(), V, F).reshape(coarse.shape).astype(np.float32)
-    lower = upper = sdf
-    for level in range(levels - 2, -1, -1):
-        s = 2**level
-        fine = Grid(grid.lo, h * s, tuple((n - 1) // s + 1 for n in grid.shape))
-        lower, upper, sdf = _refine(lower, upper, sdf, fine, V, F, SDF_BAND)
-    with atomic_write(path) as f:
-        np.save(f, sdf)
+    path = SDF_GRIDS.path(V.astype(np.float32), F, h, levels, SDF_BAND, suffix=".npy")
+
+    def build() -> np.ndarray:
+        step = 2 ** (levels - 1)
+        coarse = Grid(grid.lo, h * step, tuple((n - 1) // step + 1 for n in grid.shape))
+        sdf = _exact_sdf(coarse.points(), V, F).reshape(coarse.shape).astype(np.float32)
+        lower = upper = sdf
+        for level in range(levels - 2, -1, -1):
+            s = 2**level
+            fine = Grid(grid.lo, h * s, tuple((n - 1) // s + 1 for n in grid.shape))
+            lower, upper, sdf = _refine(lower, upper, sdf, fine, V, F, SDF_BAND)
+        return sdf
+
+    def read(p) -> np.ndarray | None:
+        sdf = np.load(p, allow_pickle=False)
+        return sdf if sdf.shape == grid.shape else None
+
+    def write(sdf: np.ndarray, p) -> None:
+        with open(p, "wb") as f:
+            np.save(f, sdf)
+
+    sdf = SDF_GRIDS.get_or_build(path, build, write, read)
     return grid, sdf.astype(np.float64)
 
 

@@ -12,10 +12,27 @@ import numpy as np
 import scipy.sparse
 import torch
 
-from drapebench.cache import atomic_write, cache_dir, content_hash
+from drapebench.cache import Cache, content_hash
 
 _MEMORY: dict[str, "Topology"] = {}
-_FORMAT = 2  # bump when the stored arrays change; older cache files are then rebuilt
+TOPOLOGIES = Cache("topology", 2)  # bump the version when the stored arrays change
+
+
+def _write_arrays(arr: dict, path) -> None:
+    """Store :func:`build_topology_arrays`' dict as npz (boundary loops flattened)."""
+    loops = arr["boundary_loops"]
+    flat = np.concatenate(loops) if loops else np.zeros(0, np.int64)
+    split = np.cumsum([len(lp) for lp in loops])[:-1] if loops else np.zeros(0, np.int64)
+    with open(path, "wb") as fh:
+        np.savez(fh, loops_flat=flat, loops_split=split, **{k: v for k, v in arr.items() if k != "boundary_loops"})
+
+
+def _read_arrays(path) -> dict:
+    """What :func:`_write_arrays` stored."""
+    with np.load(path, allow_pickle=False) as z:
+        arr = {k: z[k] for k in z.files}
+    arr["boundary_loops"] = np.split(arr.pop("loops_flat"), arr.pop("loops_split"))
+    return arr
 
 
 @dataclass(frozen=True)
@@ -278,24 +295,8 @@ def get_topology(
     mem_key = f"{key}-{dtype}-{device}"
     if cache and mem_key in _MEMORY:
         return _MEMORY[mem_key]
-    path = cache_dir("topology") / f"{key}-v{_FORMAT}.npz"
-    arr = None
-    if cache and path.exists():
-        try:
-            with np.load(path, allow_pickle=False) as z:
-                arr = {k: z[k] for k in z.files}
-            arr["boundary_loops"] = np.split(arr.pop("loops_flat"), arr.pop("loops_split"))
-        except (OSError, ValueError, KeyError):
-            arr = None  # unreadable cache entry: rebuild it
-    if arr is None:
-        arr = build_topology_arrays(x, f, uv_arr)
-        if cache:
-            loops = arr["boundary_loops"]
-            flat = np.concatenate(loops) if loops else np.zeros(0, np.int64)
-            split = np.cumsum([len(lp) for lp in loops])[:-1] if loops else np.zeros(0, np.int64)
-            save = {k: v for k, v in arr.items() if k != "boundary_loops"}
-            with atomic_write(path) as fh:
-                np.savez(fh, loops_flat=flat, loops_split=split, **save)
+    path = TOPOLOGIES.path(x, f, uv_arr)
+    arr = TOPOLOGIES.get_or_build(path, lambda: build_topology_arrays(x, f, uv_arr), _write_arrays, _read_arrays, enabled=cache)
     topo = _from_arrays(arr, key, dtype)
     if str(device) != "cpu":
         topo = topo.to(device=device)

@@ -30,13 +30,13 @@ import numpy as np
 import torch
 
 from drapebench.body.skinning import nearest_body_vertices, transfer_shape
-from drapebench.cache import atomic_write, cache_dir, content_hash
+from drapebench.cache import Cache, body_key
 from drapebench.errors import DrapeFailed
 from drapebench.physics.material import Material
 from drapebench.progress import progress as progress_bar
 from drapebench.reference.settings import SimSettings
 
-CACHE_VERSION = 1
+REFERENCES = Cache("reference", 1)  # bump when the simulation or the stored format changes
 MAX_START_INSIDE = 0.01  # a garment with more of its vertices inside the rest body is rejected
 MAX_STRETCH = 4.0  # an edge longer than this x its rest length counts as a blow-up
 
@@ -84,21 +84,6 @@ class SimulationRecord:
         return float(sum(self.timings_s.values()))
 
 
-_BODY_KEYS: dict[int, tuple] = {}
-
-
-def _body_key(body) -> str:
-    """Content hash of everything of the body model that shapes the collider and the pins (memoised per object)."""
-    hit = _BODY_KEYS.get(id(body))
-    if hit is None or hit[0] is not body:
-        parts = [body.v_template, body.shapedirs, body.J_regressor, body.weights, body.faces, list(body.parents)]
-        if getattr(body, "posedirs", None) is not None:
-            parts.append(body.posedirs)
-        hit = (body, content_hash(*parts))
-        _BODY_KEYS[id(body)] = hit
-    return hit[1]
-
-
 def _versions() -> dict:
     out = {}
     for pkg in ("newton", "warp-lang"):
@@ -109,9 +94,24 @@ def _versions() -> dict:
     return out
 
 
-def _cache_path(garment, seq, settings: SimSettings, key: str):
+def _cache_path(garment, seq, settings: SimSettings, *key_parts):
     name = re.sub(r"[^A-Za-z0-9_.-]+", "-", f"{garment.name}_{seq.name}_{settings.solver}")
-    return cache_dir("reference") / f"{name}_{key}.npz"
+    return REFERENCES.path(*key_parts, prefix=name)
+
+
+def _write_record(value: tuple, path) -> None:
+    verts, meta = value
+    with open(path, "wb") as f:
+        np.savez(f, vertices=verts, meta=np.array(json.dumps(meta)))
+
+
+def _reader(shape: tuple):
+    def read(path) -> tuple | None:
+        with np.load(path, allow_pickle=False) as data:
+            verts, meta = data["vertices"], json.loads(str(data["meta"]))
+        return (verts, meta) if verts.shape == shape else None
+
+    return read
 
 
 def _smoothstep(u: np.ndarray) -> np.ndarray:
@@ -254,27 +254,21 @@ def simulate_record(
     if cfg.device is None:
         cfg = cfg.with_(device="cuda:0" if torch.cuda.is_available() else "cpu")
     device_kind = cfg.device.split(":")[0]
-    key = content_hash(
-        CACHE_VERSION, garment.vertices, garment.faces, garment.pins if cfg.pins else None, garment.betas,
-        seq.betas, seq.poses, seq.trans, float(seq.fps), _body_key(body), material.to_dict(),
+    path = _cache_path(
+        garment, seq, cfg, garment.vertices, garment.faces, garment.pins if cfg.pins else None, garment.betas,
+        seq.betas, seq.poses, seq.trans, float(seq.fps), body_key(body), material.to_dict(),
         {**cfg.to_dict(), "device": device_kind}, _versions(),
     )  # fmt: skip
-    path = _cache_path(garment, seq, cfg, key)
-    if cache and not force and path.exists():
-        try:
-            with np.load(path) as data:
-                verts, meta = data["vertices"], json.loads(str(data["meta"]))
-            if verts.shape == (seq.n_frames, garment.n_vertices, 3):
-                return SimulationRecord(torch.from_numpy(verts), meta["timings_s"], cfg, True, time.perf_counter() - t0,
-                                        str(path), meta["stats"])  # fmt: skip
-        except (OSError, ValueError, KeyError):
-            pass  # unreadable entry: simulate again and overwrite it
+    hit = REFERENCES.load(path, _reader((seq.n_frames, garment.n_vertices, 3)), force) if cache else None
+    if hit is not None:
+        verts, meta = hit
+        return SimulationRecord(torch.from_numpy(verts), meta["timings_s"], cfg, True, time.perf_counter() - t0,
+                                str(path), meta["stats"])  # fmt: skip
     verts, timings, stats = _run(garment, seq, body, material, cfg, progress)
     if cache:
-        meta = json.dumps({"timings_s": timings, "stats": stats, "settings": cfg.to_dict(), "garment": garment.name,
-                           "sequence": seq.name, "material": material.to_dict()})  # fmt: skip
-        with atomic_write(path) as f:
-            np.savez(f, vertices=verts, meta=np.array(meta))
+        meta = {"timings_s": timings, "stats": stats, "settings": cfg.to_dict(), "garment": garment.name,
+                "sequence": seq.name, "material": material.to_dict()}  # fmt: skip
+        REFERENCES.store(path, lambda tmp: _write_record((verts, meta), tmp))
     return SimulationRecord(torch.from_numpy(verts), timings, cfg, False, time.perf_counter() - t0,
                             str(path) if cache else None, stats)  # fmt: skip
 

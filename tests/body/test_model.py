@@ -149,3 +149,18 @@ def test_waist_girth_grows_with_the_body(body_lowres):
 
     g = [girth_at(v) for v in (-2.0, 0.0, 2.0)]
     assert 0.6 < g[0] < g[1] < g[2] < 1.3  # beta1 is body weight: a larger waist, in metres
+
+
+@pytest.mark.parametrize("damage", ["truncate", "flip"])
+def test_a_damaged_body_file_fails_naming_the_file_and_the_fix(damage, tmp_path):
+    from drapebench.body.model import BODY_DIR
+
+    data = bytearray((BODY_DIR / "anny_lowres.npz").read_bytes())
+    if damage == "truncate":
+        data = data[: len(data) // 2]
+    else:
+        data[len(data) // 2] ^= 0x01
+    path = tmp_path / "body.npz"
+    path.write_bytes(bytes(data))
+    with pytest.raises(ValueError, match="body.npz is truncated or corrupt.*drapebench.body.bake"):
+        load_body(path)

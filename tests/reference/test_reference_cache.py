@@ -106,3 +106,19 @@ def test_diverged_error_survives_pickling_for_parallel_sweeps(scene, body_lowres
     back = pickle.loads(pickle.dumps(err))
     assert type(back) is SimulationDiverged and isinstance(back, DrapeFailed)
     assert str(back) == str(err) and back.frame == 5 and back.garment == g.name
+
+
+def test_force_makes_the_pbs_method_simulate_again_once(scene, body_lowres, stub):
+    """``force=true`` of a run (drapebench.cache.forcing) reaches the cached reference the pbs method reads."""
+    import methods
+    from drapebench.cache import forcing
+
+    g, seq = scene
+    m = methods.get("pbs")({"solver": "vbd"})
+    m.bind(body_lowres, Material())
+    m.drape(g, seq)
+    assert len(stub) == 1
+    with forcing():
+        forced, again = m.drape(g, seq), m.drape(g, seq)
+    assert len(stub) == 2, "force=true read the cached reference (or simulated it twice)"
+    assert "cache_load" not in forced.timings_ms and "cache_load" in again.timings_ms
