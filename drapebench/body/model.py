@@ -354,12 +354,16 @@ def load_body(name_or_path: str | Path = "anny", dtype: torch.dtype = torch.floa
         path = BODY_DIR / f"{name}.npz"
         if not path.exists():
             raise FileNotFoundError(f"{path} is missing; rebuild it with `python -m drapebench.body.bake`")
-    else:
+    elif Path(name_or_path).exists():
         path = Path(name_or_path)
-        if not path.exists():
-            raise FileNotFoundError(
-                f"body {name!r} is neither a shipped body ({', '.join(SHIPPED_BODIES)}) nor an existing file"
-            )
+    elif (BODY_DIR / f"{name}.npz").exists():  # a user's model placed in data/bodies (e.g. body=smpl)
+        path = BODY_DIR / f"{name}.npz"
+    else:
+        raise FileNotFoundError(
+            f"body {name!r} is neither a shipped body ({', '.join(SHIPPED_BODIES)}) nor an existing file, and "
+            f"{BODY_DIR / (name + '.npz')} does not exist: put an SMPL-format .npz there, or pass the file's path "
+            "(python run.py body=smpl body.name=/path/to/model.npz; see README, 'Your own body')"
+        )
     d = _read_model_file(path)
     axis = up_axis or str(np.asarray(d.get("up_axis", "z")))
     if axis not in ("y", "z"):

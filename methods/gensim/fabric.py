@@ -15,9 +15,10 @@ import logging
 import numpy as np
 import torch
 
-from drapebench.cache import cache_dir, content_hash, write_json
+from drapebench.cache import Cache, body_key, write_json
 
 log = logging.getLogger("drapebench")
+FITS = Cache("gensim", 1)
 # (garment kind, factory parameters, size seed, training motion): seed 7 gives other sizes than the
 # default garments, and none of these motions is a held-out test motion.
 FIT_SCENES = (("tshirt", {}, 7, "walk"), ("tank", {}, 7, "jump"), ("longsleeve", {}, 7, "arm_raise"), ("skirt", {}, 7, "walk"),
@@ -41,10 +42,10 @@ def fit_fabric(body_name: str = "anny_lowres", solver: str = "vbd", n_frames: in
     from drapebench.reference import simulate
 
     body = load_body(body_name)
-    key = content_hash("gensim_fabric_v1", body.v_template, body.faces, list(scenes), solver, n_frames, FRAMES_PER_SCENE, N_FIT_FRAMES)
-    path = cache_dir("gensim") / f"fabric_{key}.json"
-    if path.exists() and not force:
-        return json.loads(path.read_text())
+    path = FITS.path(body_key(body), list(scenes), solver, n_frames, FRAMES_PER_SCENE, N_FIT_FRAMES, prefix="fabric", suffix=".json")
+    fit = FITS.load(path, lambda p: json.loads(p.read_text()), force=force)
+    if fit is not None:
+        return fit
     from drapebench.errors import DrapeFailed
 
     changes, used, skipped = [], [], []
@@ -68,7 +69,7 @@ def fit_fabric(body_name: str = "anny_lowres", solver: str = "vbd", n_frames: in
     phi = torch.cat(changes).double()
     fit = {"mean": float(phi.mean()), "std": float(phi.std()), "n_frames": len(used) * FRAMES_PER_SCENE, "n_edges": int(len(phi)),
            "scenes": used, "skipped": skipped, "body": body_name, "solver": solver}  # fmt: skip
-    write_json(path, fit)
+    FITS.store(path, lambda tmp: write_json(tmp, fit))
     return fit
 
 

@@ -7,11 +7,12 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 import torch
 
-from drapebench.cache import atomic_write, cache_dir, content_hash
+from drapebench.cache import Cache, body_key, content_hash
 from drapebench.geometry.ops import vertex_normals
 from drapebench.geometry.proximity import nearest_body_vertex
 from drapebench.progress import progress
@@ -25,6 +26,7 @@ from methods.gensim.pins import garment_pins
 
 log = logging.getLogger("drapebench")
 PEN_CHUNK = 16  # frames per PEN pass at inference
+FRAMES = Cache("gensim", 3)  # the ARAP stage of the training frames
 
 
 @dataclass
@@ -126,7 +128,7 @@ class GenSim(DrapingMethod):
         torch.manual_seed(budget.seed)
         self.net = self._new_net()
         self._graphs, self._items = self._training_frames(budget.seed)
-        key = content_hash(self.p, budget, dict(self.body.state_dict()), self.body.parents, data.material, self.fabric,
+        key = content_hash(self.p, budget, body_key(self.body), data.material, self.fabric,
                            [(g.template, g.topology.faces) for g in self._graphs])  # fmt: skip
         objective = Objective("gensim", [{"params": list(self.net.parameters()), "lr_factor": 1.0}], len(self._items),
                               self._batch, self._loss_terms, key)  # fmt: skip
@@ -154,13 +156,13 @@ class GenSim(DrapingMethod):
         garments = [make_garment(kind, body, seed=s, **{**dict(params), "resolution": r})
                     for kind, params in tp["garments"] for s in tp["seeds"] for r in tp["resolutions"]]  # fmt: skip
         graphs = [garment_graph(g, body, self.material) for g in garments]
-        key = content_hash("gensim_frames_v2", tp, seed, self.p["supervised"], self.material, dict(body.state_dict()), self.arap, [(g.vertices, g.faces, g.pins) for g in garments])
-        path = cache_dir("gensim") / f"frames_{key}.pt"
-        if path.exists():
-            try:
-                return graphs, torch.load(path, weights_only=False)
-            except (OSError, RuntimeError, EOFError) as err:
-                log.warning("gensim: cached training frames %s are unreadable (%s); rebuilding them", path, err)
+        path = FRAMES.path(tp, seed, self.p["supervised"], self.material, body_key(body), self.arap,
+                           [(g.vertices, g.faces, g.pins) for g in garments], prefix="frames", suffix=".pt")  # fmt: skip
+        items = FRAMES.load(path, partial(torch.load, weights_only=False))
+        if items is not None:
+            return graphs, items
+        log.info("gensim: computing the ARAP stage of %d training frames (%d garments; cached after)",
+                 len(garments) * tp["sequences"] * tp["frames_per_sequence"], len(garments))  # fmt: skip
         rng = np.random.default_rng(seed)
         items = []
         plan = [(gi, k) for gi in range(len(graphs)) for k in range(tp["sequences"])]
@@ -178,8 +180,7 @@ class GenSim(DrapingMethod):
             items += [(gi, betas, poses[j : j + 1], G[j], D[j], refs[j]) for j in range(len(frames))]
         if not items:
             raise RuntimeError("gensim: no training frames (every reference simulation failed); see the warnings above")
-        with atomic_write(path, mode=None) as tmp:
-            torch.save(items, tmp)
+        FRAMES.store(path, lambda tmp: torch.save(items, tmp))
         return graphs, items
 
     def _reference_frames(self, garment, seq, frames):

@@ -164,3 +164,10 @@ def test_a_damaged_body_file_fails_naming_the_file_and_the_fix(damage, tmp_path)
     path.write_bytes(bytes(data))
     with pytest.raises(ValueError, match="body.npz is truncated or corrupt.*drapebench.body.bake"):
         load_body(path)
+
+
+def test_a_missing_user_body_names_the_file_it_looked_for():
+    from drapebench.body.model import BODY_DIR
+
+    with pytest.raises(FileNotFoundError, match=f"{BODY_DIR / 'smpl.npz'} does not exist.*body.name=/path/to/model.npz"):
+        load_body("smpl")
