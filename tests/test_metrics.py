@@ -75,7 +75,8 @@ def test_lbs_drape_on_a_real_body_matches_unculled_queries(body_lowres):
     from drapebench.body import make_sequence
     from drapebench.body.lbs import lbs
     from drapebench.garments import make_garment
-    from drapebench.geometry.proximity import nearest_body_vertex, signed_distance
+    from drapebench.geometry.proximity import nearest_body_vertex
+    from drapebench.geometry.sdf import signed_distance
 
     body = body_lowres
     g = make_garment("tshirt", body)
