@@ -10,7 +10,8 @@ from timing import best
 from drapebench.body import load_body, make_sequence
 from drapebench.garments import make_garment
 from drapebench.geometry import topology as topo_mod
-from drapebench.geometry.proximity import culled_body_vertices, nearest_body_vertex, signed_distance
+from drapebench.geometry.proximity import culled_body_vertices, nearest_body_vertex
+from drapebench.geometry.sdf import signed_distance
 from drapebench.geometry.topology import build_topology_arrays, get_topology
 from drapebench.metrics import evaluate
 from drapebench.physics import (

@@ -241,13 +241,13 @@ def _run(cfg: DictConfig, out: Path) -> dict:
         f.write(OmegaConf.to_yaml(cfg, resolve=True))
     write_json(out / "env.json", environment(cfg.device))
     if viz == "rerun":
-        from drapebench.geometry.proximity import nearest_body_vertex
+        from drapebench.geometry.sdf import inside_body
         from drapebench.viz import record_drape
 
         t = time.perf_counter()
-        nn = nearest_body_vertex(result.vertices, seq.vertices(body), seq.vertex_normals(body))
+        inside = inside_body(result.vertices, seq.vertices(body), body.faces)  # the rule behind eps_c
         record_drape(out / "drape.rrd", seq.vertices(body), body.faces, result.vertices, garment.topology, seq.fps,
-                     penetrating=nn.distance < 0, reference=reference, stages=result.extras,
+                     penetrating=inside, reference=reference, stages=result.extras,
                      name=f"{cfg.method.name}_{garment.kind}_{seq.name}")  # fmt: skip
         stages["viz_s"] = time.perf_counter() - t
     stages["total_s"] = time.perf_counter() - t_start

@@ -4,12 +4,14 @@ Per frame, for garment positions x (T, V, 3) against the template (``garment.top
 posed body of the sequence:
 
 - ``eps_e`` / ``eps_a``: mean absolute relative change (%) of edge lengths / face areas;
-- ``eps_c``: % of vertices inside the body (exact signed distance to the body mesh < 0);
+- ``eps_c``: % of vertices inside the body, the headline collision rule: inside any body part counts
+  as inside (winding number of the whole body > 0.5, :func:`drapebench.geometry.sdf.inside_body`);
 - ``eps_c_nn``: % of vertices with nearest-body-vertex normal distance n . (x - v) < 0 (how the GAPS
-  code counts collisions);
+  code counts collisions; kept for comparison with the paper, not the headline);
 - ``edge_mm``: mean absolute edge-length change (mm); ``smoothness``: mean |cotangent Laplacian| of
   the positions (m);
-- ``penetration_mm``: mean depth of the penetrating vertices (mm, 0 when none);
+- ``penetration_mm``: mean depth of the penetrating vertices (mm, 0 when none): their exact distance
+  to the closest body surface point (:func:`drapebench.geometry.sdf.signed_distance`);
 - ``jitter``: mean |x[t+1] - 2 x[t] + x[t-1]| (mm; NaN at the first and last frame);
 - ``vertex_error_mm``: mean distance to the reference drape (mm), when one is given;
 - ``energy_<name>``: :func:`drapebench.physics.energy_terms` per frame (J; collision in m^3, unweighted).
@@ -17,8 +19,9 @@ posed body of the sequence:
 The summary is the mean over the evaluated frames of every column, except ``penetration_mm`` (mean
 depth over all penetrating vertices of all frames); ``eps_e_std``, ``eps_a_std`` and ``eps_c_std``
 are the population std over frames of those metrics. The sequence's leading transition frames (rest
-pose -> motion) are left out by default. Body queries only look at the body parts near the garment
-(:func:`culled_body_vertices`).
+pose -> motion) are left out by default. The signed distance searches, per frame, only the body faces
+that can hold a closest point (exact); the nearest-vertex queries (``eps_c_nn``, the collision
+energy) look at the body parts near the garment at rest (:func:`culled_body_vertices`).
 """
 
 from __future__ import annotations
@@ -27,7 +30,8 @@ import pandas as pd
 import torch
 
 from drapebench.geometry.ops import edge_lengths, face_areas
-from drapebench.geometry.proximity import culled_body_vertices, nearest_body_vertex, signed_distance
+from drapebench.geometry.proximity import culled_body_vertices, nearest_body_vertex
+from drapebench.geometry.sdf import signed_distance
 
 
 def _check_positions(x, n_frames: int, n_vertices: int, what: str) -> torch.Tensor:
@@ -45,7 +49,8 @@ def _check_positions(x, n_frames: int, n_vertices: int, what: str) -> torch.Tens
 
 
 def body_candidates(garment, body) -> torch.Tensor:
-    """(C,) body vertices near the garment (:func:`culled_body_vertices` on the garment's body shape)."""
+    """(C,) body vertices near the garment (:func:`culled_body_vertices` on the garment's body shape),
+    for the nearest-vertex queries."""
     betas = getattr(garment, "betas", None)
     rest = body.v_template
     if betas is not None:
@@ -91,7 +96,7 @@ def evaluate(
         lengths = edge_lengths(xe, topo.edges)
         d_len = (lengths - topo.rest_edge_lengths).abs()
         rel_a = (face_areas(xe, topo.faces) - topo.face_areas).abs() / topo.face_areas
-        sd = signed_distance(xe, body_v, faces, cand)
+        sd = signed_distance(xe, body_v, faces)
         nn = nearest_body_vertex(xe, body_v, body_n, cand)
         inside = sd < 0
         n_in = inside.sum(-1)

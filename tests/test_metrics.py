@@ -75,7 +75,8 @@ def test_lbs_drape_on_a_real_body_matches_unculled_queries(body_lowres):
     from drapebench.body import make_sequence
     from drapebench.body.lbs import lbs
     from drapebench.garments import make_garment
-    from drapebench.geometry.proximity import nearest_body_vertex, signed_distance
+    from drapebench.geometry.proximity import nearest_body_vertex
+    from drapebench.geometry.sdf import signed_distance
 
     body = body_lowres
     g = make_garment("tshirt", body)
@@ -93,3 +94,39 @@ def test_lbs_drape_on_a_real_body_matches_unculled_queries(body_lowres):
     assert np.isclose(summary["penetration_mm"], float(depth.mean()) * 1e3 if len(depth) else 0.0, rtol=1e-5)
     for name in ("stvk", "bending", "gravity", "collision"):
         assert np.isfinite(frames[f"energy_{name}"]).all()
+
+
+@pytest.mark.parametrize("shift", [(0.0, 0.0, 0.0), (0.0, -2.0, 0.0), (0.08, 0.0, 0.0)])
+def test_collision_metrics_equal_whole_body_queries_when_the_garment_moves_or_the_shape_differs(body_lowres, shift):
+    """A mean-shape tshirt skinned to a walk of a far body shape, in place, 2 m below the feet and
+    moved sideways into the arm: eps_c and penetration_mm equal an exact inside test (libigl's
+    winding number) and distance (libigl's closest point) over the whole body."""
+    import igl
+    from scipy.spatial import cKDTree
+
+    from drapebench.body import make_sequence
+    from drapebench.body.lbs import lbs
+    from drapebench.garments import make_garment
+
+    body = body_lowres
+    g = make_garment("tshirt", body)
+    betas = torch.zeros(body.n_betas)
+    betas[:2] = torch.tensor([2.5, -2.0])
+    seq = make_sequence("walk", 4, seed=1, betas=betas, transition=0)
+    idx = torch.as_tensor(cKDTree(body.v_template.numpy()).query(g.vertices.numpy())[1])
+    x = lbs(g.vertices, body.weights[idx], seq.transforms(body)) + torch.tensor(shift)
+    summary, frames = evaluate(g, seq, body, x, energies=False)
+    F = body.faces.numpy().astype(np.int64)
+    depths, eps_c = [], []
+    for t, bv in enumerate(seq.vertices(body).double().numpy()):
+        p = x[t].double().numpy()
+        inside = igl.winding_number(bv, F, p) > 0.5
+        eps_c.append(inside.mean() * 100)
+        depths.append(np.sqrt(igl.point_mesh_squared_distance(p, bv, F)[0])[inside])
+    assert np.allclose(frames["eps_c"], eps_c)
+    depth = np.concatenate(depths)
+    assert np.isclose(summary["penetration_mm"], depth.mean() * 1e3 if len(depth) else 0.0, rtol=1e-4)
+    if shift[1] == -2.0:
+        assert summary["eps_c"] == 0.0
+    if shift[0] > 0:
+        assert summary["eps_c"] > 1.0  # part of the garment is moved into the body

@@ -5,6 +5,7 @@ from __future__ import annotations
 import torch
 
 from drapebench.geometry.proximity import nearest_body_vertex
+from drapebench.geometry.sdf import closest_body_point
 from drapebench.geometry.topology import Topology
 from drapebench.physics.energies import (
     bending_energy,
@@ -28,6 +29,7 @@ def energy_terms(
     blend: torch.Tensor | None = None,
     collision_eps: float | None = None,
     candidates: torch.Tensor | None = None,
+    body_faces: torch.Tensor | None = None,
 ) -> dict[str, torch.Tensor]:
     """Named (B,) energies of garment positions x (B, V, 3) in joules (collision in m^3, unweighted).
 
@@ -35,7 +37,10 @@ def energy_terms(
     given (x_hat = x_prev + dt v_prev, Material.dt); ``collision`` (cubic SNUG/GAPS penalty against
     the nearest body vertex, margin ``collision_eps`` or Material.collision_thickness) when
     ``body_vertices`` and ``body_normals`` (B, Vb, 3) are given (``candidates`` restricts the body
-    vertices searched, see ``proximity.culled_body_vertices``). ``rest_angle`` and ``blend`` are passed
+    vertices searched, see ``proximity.culled_body_vertices``). With ``body_faces`` (F, 3) the
+    collision term uses the exact signed distance of :mod:`drapebench.geometry.sdf` instead (the
+    eps_c rule; body_normals may then be omitted): d_v = n . (x_v - p_v) to the closest body surface
+    point p_v with the detached closest point and normal, differentiable w.r.t. x. ``rest_angle`` and ``blend`` are passed
     to :func:`bending_energy`. Terms whose inputs are missing are skipped, never computed on placeholders.
     """
     if x.dim() == 2:
@@ -49,10 +54,15 @@ def energy_terms(
         raise ValueError("inertia needs both x_prev and v_prev (or neither)")
     if x_prev is not None:
         terms["inertia"] = inertia_energy(x, x_prev, v_prev, topology, material)
-    if (body_vertices is None) != (body_normals is None):
-        raise ValueError("collision needs both body_vertices and body_normals (or neither)")
+    if body_vertices is None and (body_normals is not None or body_faces is not None):
+        raise ValueError("collision needs body_vertices with body_normals (nearest vertex) or body_faces (signed distance)")
+    if body_vertices is not None and body_normals is None and body_faces is None:
+        raise ValueError("collision needs body_normals (nearest vertex) or body_faces (signed distance) with body_vertices")
     if body_vertices is not None:
-        nn = nearest_body_vertex(x, body_vertices, body_normals, candidates)
+        if body_faces is None:
+            near = nearest_body_vertex(x, body_vertices, body_normals, candidates)
+        else:  # closest point and normal carry no gradient: d is differentiable w.r.t. x only
+            near = closest_body_point(x, body_vertices, body_faces)
         eps = material.collision_thickness if collision_eps is None else collision_eps
-        terms["collision"] = collision_energy(x, nn.point, nn.normal, eps)
+        terms["collision"] = collision_energy(x, near.point, near.normal, eps)
     return terms

@@ -141,7 +141,7 @@ def _start_state(garment, seq, body):
 
 
 def _check_start(garment, start: torch.Tensor, rest_body: torch.Tensor, body) -> None:
-    from drapebench.geometry.proximity import signed_distance
+    from drapebench.geometry.sdf import signed_distance
 
     sd = signed_distance(start[None].float(), rest_body[None].float(), body.faces)[0]
     inside = sd < 0

@@ -275,3 +275,27 @@ def test_degenerate_states_stay_finite_and_are_reported(sheet):
     bad = V.clone()
     bad[2, 1] = float("nan")
     assert validate_mesh_state(bad, topo).nonfinite_vertices == [(0, 2)]
+
+
+def test_collision_by_signed_distance_penalises_points_inside_the_body():
+    """With body_faces the collision term is sum max(eps - sd, 0)^3 of the exact signed distance,
+    and its gradient pushes inside points outward (away from the sphere's centre)."""
+    import trimesh
+
+    from drapebench.geometry import get_topology
+    from drapebench.geometry.sdf import signed_distance
+
+    s = trimesh.creation.icosphere(3, radius=0.5)
+    BV, BF = torch.as_tensor(s.vertices)[None], torch.as_tensor(s.faces)
+    g = trimesh.creation.icosphere(1, radius=0.45)  # a garment just inside the body
+    topo = get_topology(g.vertices, g.faces)
+    x = torch.as_tensor(g.vertices, dtype=topo.dtype)[None].clone().requires_grad_()
+    BV = BV.to(topo.dtype)
+    e = energy_terms(x, topo, MAT, body_vertices=BV, body_faces=BF, collision_eps=2e-3)["collision"]
+    sd = signed_distance(x.detach(), BV, BF)
+    assert (sd < 0).all()
+    assert torch.allclose(e, (torch.relu(2e-3 - sd) ** 3).sum(-1))
+    e.sum().backward()
+    assert ((x.grad * x.detach()).sum(-1) < 0).all()  # descent direction -grad points outward
+    with pytest.raises(ValueError, match="body_normals .* or body_faces"):
+        energy_terms(x.detach(), topo, MAT, body_vertices=BV)

@@ -8,7 +8,7 @@ import torch
 
 from drapebench.body import make_sequence
 from drapebench.garments import make_garment
-from drapebench.geometry.proximity import signed_distance
+from drapebench.geometry.sdf import signed_distance
 from drapebench.metrics import evaluate
 from drapebench.physics import Material
 from drapebench.reference import SimulationDiverged, simulate, simulate_record

@@ -1,0 +1,184 @@
+"""The one signed distance (drapebench.geometry.sdf) against independent implementations."""
+
+import igl
+import numpy as np
+import pytest
+import torch
+import trimesh
+
+from drapebench.geometry.sdf import closest_body_point, inside_body, signed_distance
+
+
+def _segment_distance(p, a, b):
+    """Distance from points p (N,3) to segments a-b (F,3): (N,F)."""
+    ab = b - a
+    t = np.clip(((p[:, None] - a) * ab).sum(-1) / np.maximum((ab * ab).sum(-1), 1e-300), 0, 1)
+    return np.linalg.norm(p[:, None] - (a + t[..., None] * ab), axis=-1)
+
+
+def _brute_unsigned(p, V, F):
+    """Independent point-triangle distance: plane distance when the projection is inside the triangle,
+    else the nearest of the three edges; min over all faces. p (N,3) -> (N,)."""
+    a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
+    n = np.cross(b - a, c - a)
+    n = n / np.linalg.norm(n, axis=-1, keepdims=True)
+    h = ((p[:, None] - a) * n).sum(-1)
+    proj = p[:, None] - h[..., None] * n
+    inside = np.ones(h.shape, bool)
+    for u, v in ((a, b), (b, c), (c, a)):
+        inside &= (np.cross(v - u, proj - u) * n).sum(-1) >= 0
+    edges = np.minimum.reduce([_segment_distance(p, a, b), _segment_distance(p, b, c), _segment_distance(p, c, a)])
+    return np.where(inside, np.abs(h), edges).min(1)
+
+
+def _winding(p, V, F):
+    """Exact generalized winding number (Van Oosterom-Strackee solid angles summed), p (N,3) -> (N,)."""
+    a, b, c = (V[F[:, i]][None] - p[:, None] for i in range(3))
+    la, lb, lc = (np.linalg.norm(x, axis=-1) for x in (a, b, c))
+    det = (a * np.cross(b, c)).sum(-1)
+    den = la * lb * lc + (a * b).sum(-1) * lc + (b * c).sum(-1) * la + (c * a).sum(-1) * lb
+    return (2 * np.arctan2(det, den)).sum(1) / (4 * np.pi)
+
+
+def _winding_inside(p, V, F):
+    """Inside test by the exact winding number (> 0.5), in chunks of points: bool (N,)."""
+    return np.concatenate([_winding(c, V, F) > 0.5 for c in np.array_split(p, max(1, len(p) * len(F) // 2_000_000))])
+
+
+@pytest.mark.parametrize("shape", ["box", "torus"])
+def test_signed_distance_matches_brute_force(shape):
+    """Convex box (sharp edges and corners: the pseudonormal cases) and a non-convex torus."""
+    mesh = trimesh.creation.box((0.4, 0.3, 0.2)) if shape == "box" else trimesh.creation.torus(0.3, 0.1, 24, 12)
+    V, F = np.asarray(mesh.vertices, float), np.asarray(mesh.faces)
+    rng = np.random.default_rng(0)
+    p = rng.uniform(V.min(0) - 0.1, V.max(0) + 0.1, size=(600, 3))
+    p = np.concatenate([p, V + rng.normal(scale=1e-3, size=V.shape)])  # just in/out of vertices
+    sd = signed_distance(torch.as_tensor(p)[None], torch.as_tensor(V)[None], torch.as_tensor(F))[0].numpy()
+    assert np.allclose(np.abs(sd), _brute_unsigned(p, V, F), atol=1e-12)
+    inside = _winding_inside(p, V, F)
+    assert 0 < inside.sum() < len(p) and np.array_equal(sd < 0, inside)
+
+
+def test_closest_point_lies_on_its_face_at_the_distance():
+    mesh = trimesh.creation.icosphere(2, radius=0.5)
+    V, F = torch.as_tensor(mesh.vertices), torch.as_tensor(mesh.faces)
+    p = torch.randn(2, 300, 3, dtype=torch.float64)
+    cp = closest_body_point(p, V[None].expand(2, -1, -1), F)
+    assert torch.allclose((p - cp.point).norm(dim=-1), cp.distance.abs())
+    tri = V[F[cp.face]]  # the closest point is a convex combination of its face's corners
+    n = torch.cross(tri[..., 1, :] - tri[..., 0, :], tri[..., 2, :] - tri[..., 0, :], dim=-1)
+    assert ((cp.point - tri[..., 0, :]) * n).sum(-1).abs().max() < 1e-12
+    r = p.norm(dim=-1)
+    clear = (r - 0.5).abs() > 0.05  # well inside / outside the 0.5 sphere
+    assert torch.equal((cp.distance < 0)[clear], (r < 0.5)[clear])
+    assert signed_distance(p.float(), V.float()[None], F).dtype == torch.float32
+
+
+def test_eps_c_count_is_exact_for_points_placed_in_a_box():
+    """k points placed inside a box body (1 mm to 4 cm deep), the rest outside (1 mm to 4 cm away)."""
+    mesh = trimesh.creation.box((0.3, 0.2, 0.5))
+    V, F = torch.as_tensor(mesh.vertices)[None], torch.as_tensor(mesh.faces)
+    rng = np.random.default_rng(3)
+    half = np.array([0.15, 0.1, 0.25])
+    direction = rng.normal(size=(400, 3))
+    axis = np.abs(direction / half).argmax(1)  # push each point along the normal of the face it faces
+    surface = direction / np.abs(direction / half).max(1, keepdims=True)
+    depth = rng.uniform(1e-3, 0.04, size=400)
+    k = 137
+    offset = np.where(np.arange(400) < k, -depth, depth)
+    p = surface.copy()
+    p[np.arange(400), axis] += np.sign(surface[np.arange(400), axis]) * offset
+    sd = signed_distance(torch.as_tensor(p)[None], V, F)[0]
+    assert int((sd < 0).sum()) == k
+    assert torch.allclose(sd[k:], torch.as_tensor(depth[k:]))  # outside a face's interior: the offset itself
+    assert (sd[:k] < 0).all() and (-sd[:k] <= torch.as_tensor(depth[:k]) + 1e-12).all()
+
+
+def test_bad_faces_are_named():
+    with pytest.raises(ValueError, match="body_faces"):
+        signed_distance(torch.zeros(1, 4, 3), torch.randn(1, 10, 3), torch.tensor([[0, 1, 10]]))
+
+
+def _two_overlapping_boxes():
+    a, b = trimesh.creation.box((0.4, 0.2, 0.2)), trimesh.creation.box((0.2, 0.2, 0.4))
+    b.apply_translation((0.15, 0.0, 0.0))
+    V = np.concatenate([a.vertices, b.vertices])
+    F = np.concatenate([a.faces, b.faces + len(a.vertices)])
+    return V, F
+
+
+def test_inside_any_part_counts_as_inside_where_parts_overlap():
+    """A point inside box A whose nearest surface is a face of box B (inside A, outside B near it)
+    is inside; the closest-feature pseudonormal would read it as outside."""
+    V, F = _two_overlapping_boxes()
+    p = np.array([[0.06, 0.0, 0.0], [0.15, 0.0, 0.15], [0.22, 0.0, 0.0], [0.0, 0.0, 0.15]])
+    sd = signed_distance(torch.as_tensor(p)[None], torch.as_tensor(V)[None], torch.as_tensor(F))[0].numpy()
+    assert np.array_equal(sd < 0, [True, True, True, False])
+    assert np.allclose(np.abs(sd), np.sqrt(igl.point_mesh_squared_distance(p, V, F)[0]), atol=1e-12)
+    rng = np.random.default_rng(1)
+    q = rng.uniform(V.min(0) - 0.05, V.max(0) + 0.05, size=(800, 3))
+    inside = inside_body(torch.as_tensor(q)[None], torch.as_tensor(V)[None], torch.as_tensor(F))[0].numpy()
+    assert np.array_equal(inside, _winding_inside(q, V, F)) and 0 < inside.sum() < len(q)
+
+
+def test_normal_gives_a_differentiable_signed_distance():
+    mesh = trimesh.creation.torus(0.3, 0.1, 24, 12)
+    V, F = torch.as_tensor(mesh.vertices)[None], torch.as_tensor(mesh.faces)
+    x = (torch.randn(1, 200, 3, dtype=torch.float64) * 0.3).requires_grad_()
+    sp = closest_body_point(x, V, F)
+    assert torch.allclose(((x - sp.point) * sp.normal).sum(-1), sp.distance, atol=1e-12)
+    assert torch.allclose(sp.normal.norm(dim=-1), torch.ones(1, 200, dtype=torch.float64))
+    ((x - sp.point.detach()) * sp.normal.detach()).sum().backward()
+    h, e = 1e-6, torch.zeros(1, 200, 3, dtype=torch.float64)
+    e[..., 0] = h  # finite difference of the exact signed distance along x
+    fd = (signed_distance(x.detach() + e, V, F) - signed_distance(x.detach() - e, V, F)) / (2 * h)
+    assert torch.allclose(x.grad[..., 0], fd, atol=1e-5)
+
+
+def _squat_points(body, n_frames=20):
+    """Body frames of a deep squat (the last frames press thighs into belly) and per frame the body
+    vertices 5 mm inside along their normals (where parts overlap, inside two parts) plus points
+    within 3 cm of the surface: (T,Vb,3) and (T,Vb+2000,3) float64."""
+    from drapebench.body import make_sequence
+
+    seq = make_sequence("squat", n_frames, seed=0)
+    bv, bn = seq.vertices(body).double(), seq.vertex_normals(body).double()
+    g = torch.Generator().manual_seed(0)
+    idx = torch.randint(0, body.n_vertices, (2000,), generator=g)
+    near = bv[:, idx] + 0.03 * (torch.rand(bv.shape[0], 2000, 3, generator=g, dtype=torch.float64) * 2 - 1)
+    return bv, torch.cat([bv - 0.005 * bn, near], 1)
+
+
+def test_inside_matches_an_exact_winding_number_where_the_body_intersects_itself(body_lowres):
+    body = body_lowres
+    bv, x = _squat_points(body, 30)
+    F = body.faces.numpy()
+    frame = bv.shape[0] - 1
+    V, p = bv[frame].numpy(), x[frame].numpy()
+    w = np.concatenate([_winding(c, V, F) for c in np.array_split(p, 40)])
+    assert (w > 1.5).sum() >= 10  # the posed body overlaps itself here
+    inside = inside_body(x[frame][None], bv[frame][None], body.faces)[0].numpy()
+    clear = np.abs(w - 0.5) > 0.05  # the fast winding number's approximation band
+    assert clear.mean() > 0.99 and np.array_equal(inside[clear], w[clear] > 0.5)
+    sd = signed_distance(x[frame][None], bv[frame][None], body.faces)[0].numpy()
+    assert np.array_equal((sd < 0)[clear], w[clear] > 0.5)
+    assert np.allclose(np.abs(sd), np.sqrt(igl.point_mesh_squared_distance(p, V, F.astype(np.int64))[0]), atol=1e-9)
+
+
+@pytest.mark.parametrize("shift", [(0.0, -2.5, 0.0), (1.5, 0.0, 0.3), (0.0, 0.0, 0.0)])
+def test_closest_point_search_is_exact_anywhere(body_lowres, shift):
+    """Points far from the body (below the feet, beside it) and near it: the distance equals libigl's
+    over the whole body and the sign its winding number."""
+    body = body_lowres
+    bv, x = _squat_points(body, 6)
+    x = x[-2:] + torch.tensor(shift, dtype=torch.float64)
+    sp = closest_body_point(x, bv[-2:], body.faces)
+    for b in range(2):
+        V, F = bv[-2 + b].numpy(), body.faces.numpy().astype(np.int64)
+        d = np.sqrt(igl.point_mesh_squared_distance(x[b].numpy(), V, F)[0])
+        assert np.allclose(sp.distance[b].abs().numpy(), d, atol=1e-9)
+        w = igl.winding_number(V, F, x[b].numpy())
+        clear = np.abs(w - 0.5) > 0.05
+        assert np.array_equal((sp.distance[b] < 0).numpy()[clear], (w > 0.5)[clear])
+    if shift[1] < 0:
+        assert (sp.distance > 0.5).all()
