@@ -40,3 +40,20 @@ def test_recording_verifies(tmp_path):
     stats = subprocess.run([str(rerun), "rrd", "stats", str(path)], check=False, capture_output=True, text=True, timeout=60, env=env).stdout
     for component in ("Mesh3D:vertex_positions", "Mesh3D:vertex_colors", "Mesh3D:triangle_indices", "EntityBehavior:visible"):
         assert component in stats, component
+
+
+def test_method_stages_are_recorded_as_their_own_entities(tmp_path):
+    v, f = SQUARE
+    topo = get_topology(v, f)
+    T = 4
+    g = v[None].expand(T, -1, -1) + 0.0
+    handles = torch.zeros(T, 4, dtype=torch.bool)
+    handles[:, :2] = True
+    handles[3, 3] = True
+    path = record_drape(tmp_path / "s.rrd", g - 0.01, f, g, topo, 30.0, stages={"arap": g + 0.02, "handles": handles})
+    rerun = Path(sys.executable).parent / "rerun"
+    env = dict(os.environ, CI="1")
+    out = subprocess.run([str(rerun), "rrd", "print", "-v", str(path)], check=False, capture_output=True, text=True, timeout=60, env=env)
+    assert out.returncode == 0, out.stderr
+    assert "stages/arap" in out.stdout and "stages/handles" in out.stdout
+    assert "Points3D:positions" in out.stdout

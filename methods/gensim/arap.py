@@ -87,8 +87,9 @@ def handle_targets(binding: Binding, template, canonical_body, target_body, targ
     d_hat = d / d_norm.clamp_min(1e-12)[:, None]
     tau = (binding.u * d_hat).sum(-1) / u_norm.clamp_min(1e-12)
     side = tau <= cfg.eps if cfg.handle_side == "printed" else tau >= -cfg.eps
-    handles = moving & side & ~binding.pin
     q = (binding.u * d_hat).sum(-1)
+    reached = d_norm > q  # the body part has moved through the vertex's place (|d| - q > 0: line 8 moves it forward)
+    handles = moving & side & reached & ~binding.pin
     targets = template + d_hat * (d_norm - q)[:, None]
     if cfg.pin_rule == "normal":
         pin_targets = target_body[binding.nu] + target_normals[binding.nu] * u_norm[:, None]

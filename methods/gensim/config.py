@@ -15,6 +15,7 @@ from methods.gensim.losses import WEIGHTS
 TRAIN_DEFAULTS = dict(
     # tops and skirts (paper Sec. 4) as [kind, factory parameters]: tshirt, tank, longsleeve, skirt, the
     # flared and the straight skirt of conf/garment/skirt_flared.yaml and skirt_straight.yaml
+    body=None,  # the body the training frames are posed on: None = the run's body (e.g. anny_lowres: faster)
     garments=(("tshirt", {}), ("tank", {}), ("longsleeve", {}), ("skirt", {}), ("skirt", {"flare": 0.3}), ("skirt", {"flare": 0.02})),
     seeds=(1, 2),  # garment size variations (drapebench.garments.factory: ease x0.9-1.1, length +-3 cm)
     resolutions=(0.015, 0.022),  # target edge length (m): two mesh resolutions per garment

@@ -26,7 +26,7 @@ from methods.gensim.pins import garment_pins
 
 log = logging.getLogger("drapebench")
 PEN_CHUNK = 16  # frames per PEN pass at inference
-FRAMES = Cache("gensim", 3)  # the ARAP stage of the training frames
+FRAMES = Cache("gensim", 4)  # the ARAP stage of the training frames
 
 
 @dataclass
@@ -119,7 +119,12 @@ class GenSim(DrapingMethod):
     def fit(self, data, train_cfg=None) -> FitReport:
         """Train PEN once on the training garments of ``method.params.train`` (see ``methods/gensim/config.py``)
         posed on random motions and body shapes, with the unsupervised losses of Eq. 9."""
+        from drapebench.body import load_body
+
         self.bind(data.body, data.material)
+        run_body = self.body
+        if self.p["train"]["body"] is not None:  # train on another body; PEN's features do not depend on its mesh
+            self.body = load_body(self.p["train"]["body"], dtype=run_body.dtype, device=run_body.device)
         train_cfg = dict(train_cfg or {})
         log_dir = train_cfg.pop("log_dir", None)
         train_cfg.pop("dataset", None)  # GenSim builds its own training frames (below)
@@ -133,6 +138,7 @@ class GenSim(DrapingMethod):
         objective = Objective("gensim", [{"params": list(self.net.parameters()), "lr_factor": 1.0}], len(self._items),
                               self._batch, self._loss_terms, key)  # fmt: skip
         res = train(objective, budget, log_dir=log_dir)
+        self.body = run_body
         return FitReport(train_s=res.train_s, n_steps=res.n_steps, final_losses=res.history[-1] if res.history else {},
                          history=res.history, resumed_from=res.resumed_from)  # fmt: skip
 
@@ -153,8 +159,17 @@ class GenSim(DrapingMethod):
         from drapebench.garments import make_garment
 
         tp, body = self.p["train"], self.body
-        garments = [make_garment(kind, body, seed=s, **{**dict(params), "resolution": r})
-                    for kind, params in tp["garments"] for s in tp["seeds"] for r in tp["resolutions"]]  # fmt: skip
+        garments = []
+        for kind, params in tp["garments"]:
+            for s in tp["seeds"]:
+                for r in tp["resolutions"]:
+                    try:
+                        garments.append(make_garment(kind, body, seed=s, **{**dict(params), "resolution": r}))
+                    except ValueError as err:  # a variant the factory cannot mesh well: train without it
+                        log.warning("gensim: training garment %s %s (seed %d, resolution %g) skipped: %s", kind, dict(params), s, r,
+                                    str(err).splitlines()[-1].strip())  # fmt: skip
+        if not garments:
+            raise ValueError("gensim: none of the training garments (method.params.train.garments) could be built")
         graphs = [garment_graph(g, body, self.material) for g in garments]
         path = FRAMES.path(tp, seed, self.p["supervised"], self.material, body_key(body), self.arap,
                            [(g.vertices, g.faces, g.pins) for g in garments], prefix="frames", suffix=".pt")  # fmt: skip

@@ -45,6 +45,14 @@ def test_handles_and_targets_follow_alg2(side, handle):
     assert torch.equal(T[3], skinned[3])
 
 
+def test_a_vertex_the_moving_part_does_not_reach_is_no_handle():
+    canonical, target, normals, template, pins = _one_leg_case()
+    template[0, 0] = 0.2  # 20 cm in front of the leg, which moves 10 cm: |d| - q < 0
+    b = bind(template, canonical, pins)
+    H, _, _ = handle_targets(b, template, canonical, target, normals, template, ArapConfig())
+    assert not H[0] and H[3]
+
+
 def test_pin_rule_normal_keeps_the_offset_along_the_target_normal():
     canonical, target, normals, template, pins = _one_leg_case()
     b = bind(template, canonical, pins)
