@@ -193,6 +193,8 @@ def _evaluation(monkeypatch, body):
 
 
 class _Method:
+    generic = False
+
     def __init__(self, calls):
         self.calls, self.w = calls, None
 

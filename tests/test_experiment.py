@@ -108,7 +108,7 @@ def test_gaps_reads_its_own_training_keys_per_budget_and_a_wrong_train_key_fails
         _compose(["train.steps=many"])
 
 
-def test_training_writes_losses_csv_into_the_run_directory_and_a_loaded_checkpoint_too(tmp_path, monkeypatch):
+def test_training_writes_losses_csv_into_the_run_directory_and_a_loaded_checkpoint_too(tmp_path, monkeypatch, body_lowres):
     from drapebench.experiment import _checkpoint
     from methods.base import DrapingMethod, FitReport
 
@@ -133,7 +133,7 @@ def test_training_writes_losses_csv_into_the_run_directory_and_a_loaded_checkpoi
 
     cfg = _compose(["method=lbs", "body=anny_lowres"])
     garment = type("G", (), {"vertices": torch.zeros(3, 3), "faces": torch.zeros(1, 3, dtype=torch.long)})()
-    data = type("D", (), {"body": None, "material": None})()
+    data = type("D", (), {"body": body_lowres, "material": None})()
     train_cfg = {**OmegaConf.to_container(cfg.train, resolve=True), "dataset": None}
     for run_dir in (tmp_path / "a", tmp_path / "b"):  # a rerun in a new run directory loads the checkpoint
         run_dir.mkdir()
@@ -273,3 +273,36 @@ def test_a_diverged_method_stops_the_run_or_is_recorded(tmp_path, monkeypatch, o
         assert rec == saved and saved["status"] == "failed" and saved["error"] == "DrapeFailed"
         assert saved["method"] == "lbs" and saved["garment"] == "tshirt" and "frame 3" in saved["message"]
     assert not (out / "metrics.json").exists()
+
+
+@pytest.mark.parametrize("generic, fits", [(True, 1), (False, 2)])
+def test_a_generic_method_trains_once_for_every_garment(generic, fits, tmp_path, monkeypatch, body_lowres):
+    from drapebench.experiment import _checkpoint
+    from methods.base import DrapingMethod, FitReport
+
+    monkeypatch.setenv("DRAPEBENCH_DATA", str(tmp_path / "data"))
+
+    class Learned(DrapingMethod):
+        calls = []
+
+        def fit(self, data, train_cfg=None):
+            self.calls.append(1)
+            return FitReport(train_s=1.0, n_steps=1)
+
+        def drape(self, garment, seq):
+            raise NotImplementedError
+
+        def state_dict(self):
+            return {"w": torch.ones(2)}
+
+        def load_state_dict(self, state):
+            pass
+
+    Learned.generic = generic
+    cfg = _compose(["method=lbs", "body=anny_lowres"])
+    data = type("D", (), {"body": body_lowres, "material": None})()
+    train_cfg = {**OmegaConf.to_container(cfg.train, resolve=True), "dataset": None}
+    for n in (3, 4):  # two garments of different sizes
+        garment = type("G", (), {"vertices": torch.zeros(n, 3), "faces": torch.zeros(1, 3, dtype=torch.long)})()
+        _checkpoint(Learned(), cfg, garment, data, train_cfg)
+    assert len(Learned.calls) == fits
