@@ -139,6 +139,13 @@ def runtime_plot(df: pd.DataFrame, error: str, path: Path) -> Path:
     ax.set_ylabel(METRIC_LABELS.get(error, error))
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3)
+    return save_figure(fig, path)
+
+
+def save_figure(fig, path: Path) -> Path:
+    """Lay out ``fig``, write it to ``path`` as a PNG atomically and close it; returns ``path``."""
+    import matplotlib.pyplot as plt
+
     fig.tight_layout()
     with atomic_write(path, mode=None) as tmp:
         fig.savefig(tmp, dpi=130, format="png")
@@ -172,11 +179,7 @@ def loss_curve_plot(losses_csv: Path, path: Path | None = None) -> Path:
     ax.set_title(f"training loss: {losses_csv.parent.name}", fontsize=9)
     ax.legend(fontsize=7, ncol=2)
     ax.grid(alpha=0.3)
-    fig.tight_layout()
-    with atomic_write(path, mode=None) as tmp:
-        fig.savefig(tmp, dpi=130, format="png")
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def write_table(dirs, name: str, out: Path, command: str | None = None) -> list[Path]:

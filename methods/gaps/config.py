@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from typing import Any, Mapping
 
+from methods.params import method_params
+
 TRAIN_DEFAULTS = dict(
     window=3,  # consecutive frames per training item
     lr_output_factor=1.0,  # the output layer's learning rate relative to train.lr
@@ -40,16 +42,4 @@ CHOICES = dict(skinning=("rbf", "nearest", "smoothed"), kext=("collision", "one"
 def gaps_params(cfg: Mapping[str, Any] | None) -> dict:
     """GAPS's parameters: the defaults updated by ``cfg`` (``method.params``; its ``train`` sub-dict
     updates ``TRAIN_DEFAULTS``). Raises ValueError naming an unknown key or an invalid choice."""
-    cfg = dict(cfg or {})
-    unknown = set(cfg) - set(METHOD_DEFAULTS)
-    if unknown:
-        raise ValueError(f"unknown gaps parameter(s) {sorted(unknown)}; valid: {sorted(METHOD_DEFAULTS)}")
-    tp = dict(cfg.pop("train", None) or {})
-    unknown = set(tp) - set(TRAIN_DEFAULTS)
-    if unknown:
-        raise ValueError(f"unknown gaps training parameter(s) {sorted(unknown)} (method.params.train); valid: {sorted(TRAIN_DEFAULTS)}")
-    p = {**METHOD_DEFAULTS, **cfg, "train": {**TRAIN_DEFAULTS, **tp}}
-    for key, choices in CHOICES.items():
-        if p[key] not in choices:
-            raise ValueError(f"gaps parameter {key} must be one of {', '.join(choices)}, not {p[key]!r}")
-    return p
+    return method_params("gaps", cfg, METHOD_DEFAULTS, {"train": TRAIN_DEFAULTS}, CHOICES)

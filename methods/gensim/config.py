@@ -11,6 +11,7 @@ from __future__ import annotations
 from typing import Any, Mapping
 
 from methods.gensim.losses import WEIGHTS
+from methods.params import method_params
 
 TRAIN_DEFAULTS = dict(
     # tops and skirts (paper Sec. 4) as [kind, factory parameters]: tshirt, tank, longsleeve, skirt, the
@@ -52,22 +53,7 @@ CHOICES = dict(direction=("tangent", "paper"), handle_side=("pushed", "printed")
 def gensim_params(cfg: Mapping[str, Any] | None) -> dict:
     """GenSim's parameters: the defaults updated by ``cfg`` (``method.params``; ``train`` and ``weights``
     update their own defaults). Raises ValueError naming an unknown key or an invalid choice."""
-    cfg = dict(cfg or {})
-    unknown = set(cfg) - set(METHOD_DEFAULTS)
-    if unknown:
-        raise ValueError(f"unknown gensim parameter(s) {sorted(unknown)}; valid: {sorted(METHOD_DEFAULTS)}")
-    tp = dict(cfg.pop("train", None) or {})
-    unknown = set(tp) - set(TRAIN_DEFAULTS)
-    if unknown:
-        raise ValueError(f"unknown gensim training parameter(s) {sorted(unknown)} (method.params.train); valid: {sorted(TRAIN_DEFAULTS)}")
-    w = dict(cfg.pop("weights", None) or {})
-    unknown = set(w) - set(WEIGHTS)
-    if unknown:
-        raise ValueError(f"unknown gensim loss weight(s) {sorted(unknown)}; valid: {sorted(WEIGHTS)}")
-    p = {**METHOD_DEFAULTS, **cfg, "train": {**TRAIN_DEFAULTS, **tp}, "weights": {**WEIGHTS, **w}}
-    for key, choices in CHOICES.items():
-        if p[key] not in choices:
-            raise ValueError(f"gensim parameter {key} must be one of {', '.join(choices)}, not {p[key]!r}")
+    p = method_params("gensim", cfg, METHOD_DEFAULTS, {"train": TRAIN_DEFAULTS, "weights": WEIGHTS}, CHOICES)
     if (p["fabric_mean"] is None) != (p["fabric_std"] is None):
         raise ValueError("gensim fabric_mean and fabric_std are set together (or both null to fit them)")
     if p["fabric_std"] is not None and not p["fabric_std"] > 0:
