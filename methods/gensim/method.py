@@ -109,8 +109,8 @@ class GenSim(DrapingMethod):
         rest = graph.rest_edges[None].expand(B, -1, 3)
         arap_e = G[:, graph.receivers] - G[:, graph.senders]
         edge = torch.cat([rest, rest.norm(dim=-1, keepdim=True), arap_e, arap_e.norm(dim=-1, keepdim=True)], -1)
-        with torch.no_grad():
-            body_rest = self.body.shaped(betas)[0]
+        with torch.no_grad():  # one body shape for the whole batch (a sequence): encode it once
+            body_rest = self.body.shaped(betas[:1] if bool((betas == betas[:1]).all()) else betas)[0]
         index = graph.binding.nu[None].expand(B, V)
         delta, _ = self.net(node, edge, graph.senders, graph.receivers, graph.template, body_rest, index, nn.normal)
         return G + delta, delta
