@@ -306,3 +306,16 @@ def test_a_generic_method_trains_once_for_every_garment(generic, fits, tmp_path,
         garment = type("G", (), {"vertices": torch.zeros(n, 3), "faces": torch.zeros(1, 3, dtype=torch.long)})()
         _checkpoint(Learned(), cfg, garment, data, train_cfg)
     assert len(Learned.calls) == fits
+
+
+def test_two_runs_started_in_the_same_second_get_their_own_directories():
+    import re
+
+    from drapebench.schema import register
+
+    register()
+    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
+        cfg = compose("config", overrides=[], return_hydra_config=True)
+    run_dir, sweep_dir = cfg.hydra.run.dir, cfg.hydra.sweep.dir  # the sub-second field keeps two runs apart
+    assert re.search(r"/\d\d-\d\d-\d\d\.\d{6}_lbs_tshirt_walk$", run_dir), run_dir
+    assert re.search(r"/\d\d-\d\d-\d\d\.\d{6}$", sweep_dir), sweep_dir
