@@ -229,15 +229,25 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description="Paper-style tables from run or sweep directories.")
     parser.add_argument("dirs", nargs="+", type=Path, help="run or sweep directories (searched for metrics.json)")
     parser.add_argument("--table", default="baseline", choices=sorted(TABLES))
-    parser.add_argument("--out", type=Path, help="output path without suffix (default reports/<table>)")
+    parser.add_argument("--out", type=Path, help="output path without suffix (default: a new folder outputs/reports/<time>/<table>; "
+                        "give reports/<table> to replace a committed table)")
     parser.add_argument("--loss-curves", action="store_true", help="instead: losses.png beside every losses.csv in dirs")
     args = parser.parse_args(argv)
     if args.loss_curves:
         for csv in sorted(c for d in args.dirs for c in Path(d).rglob("losses.csv")):
             print(loss_curve_plot(csv))
         return
-    for p in write_table(args.dirs, args.table, args.out or Path("reports") / args.table):
+    for p in write_table(args.dirs, args.table, args.out or default_out(args.table)):
         print(p)
+
+
+def default_out(table: str) -> Path:
+    """A new folder (relative to the working directory) for a table the user did not place:
+    ``outputs/reports/<date>_<time.microseconds>/<table>``
+    (the committed ``reports/`` is only written when asked for with ``--out``)."""
+    from datetime import datetime
+
+    return Path("outputs") / "reports" / datetime.now().strftime("%Y-%m-%d_%H-%M-%S.%f") / table
 
 
 if __name__ == "__main__":

@@ -107,3 +107,19 @@ def test_loss_curve_plot_from_losses_csv(tmp_path):
     (run / "losses.csv").write_text("step,loss\n")
     with pytest.raises(ValueError, match="no steps"):
         loss_curve_plot(run / "losses.csv")
+
+
+def test_the_report_command_leaves_the_committed_reports_untouched_by_default(tmp_path, monkeypatch, capsys):
+    from drapebench.report import main
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "reports").mkdir()
+    (tmp_path / "reports" / "baseline.md").write_text("committed\n")
+    main([str(FIXTURES), "--table", "baseline"])
+    main([str(FIXTURES), "--table", "baseline"])
+    assert (tmp_path / "reports" / "baseline.md").read_text() == "committed\n"
+    written = sorted((tmp_path / "outputs" / "reports").glob("*/baseline.md"))
+    assert len(written) == 2  # each call its own folder
+    assert str(written[0].relative_to(tmp_path)) in capsys.readouterr().out
+    main([str(FIXTURES), "--table", "baseline", "--out", "reports/baseline"])  # replacing is an explicit choice
+    assert (tmp_path / "reports" / "baseline.md").read_text() != "committed\n"
