@@ -9,9 +9,9 @@ and differentiable in the points, the weights and the transforms.
 from __future__ import annotations
 
 import torch
-from scipy.spatial import cKDTree
 
 from drapebench.body.lbs import lbs
+from drapebench.geometry.proximity import nearest_indices
 
 
 def nearest_body_vertices(points: torch.Tensor, body, betas: torch.Tensor | None = None) -> torch.Tensor:
@@ -22,8 +22,7 @@ def nearest_body_vertices(points: torch.Tensor, body, betas: torch.Tensor | None
     with torch.no_grad():
         b = None if betas is None else torch.as_tensor(betas, dtype=body.dtype)[None, : body.n_betas]
         rest = body.shaped(b)[0][0]
-    _, idx = cKDTree(rest.detach().cpu().double().numpy()).query(points.detach().cpu().double().numpy(), workers=1)
-    return torch.as_tensor(idx, dtype=torch.long, device=points.device)
+    return nearest_indices(points[None], rest[None].to(points.dtype))[0]
 
 
 def nearest_weights(index: torch.Tensor, body) -> torch.Tensor:

@@ -55,7 +55,7 @@ _MAX_SOLVERS = 8
 
 def arap_solver(rest_vertices, faces, handles, iterations: int = 2) -> ArapSolver:
     """An :class:`ArapSolver`, reused when the same rest mesh, handle set and iterations come back."""
-    key = content_hash(_numpy(rest_vertices), _numpy(faces), np.sort(_numpy(handles).astype(np.int64)), _numpy(handles).astype(np.int64), iterations)
+    key = content_hash(_numpy(rest_vertices), _numpy(faces), _numpy(handles).astype(np.int64), iterations)
     solver = _SOLVERS.pop(key, None) or ArapSolver(rest_vertices, faces, handles, iterations)
     _SOLVERS[key] = solver
     while len(_SOLVERS) > _MAX_SOLVERS:

@@ -17,7 +17,7 @@ import torch
 from drapebench.body.lbs import lbs
 from drapebench.body.skinning import nearest_weights, transfer_shape
 from drapebench.geometry.arap import arap_solver
-from drapebench.geometry.proximity import nearest_body_vertex
+from drapebench.geometry.proximity import nearest_body_vertex, nearest_indices
 
 
 @dataclass(frozen=True)
@@ -67,10 +67,7 @@ class ArapFrame:
 
 def bind(template: torch.Tensor, canonical_body: torch.Tensor, pins: torch.Tensor) -> Binding:
     """Alg. 2 lines 2 and 4 for a template (V, 3) on the canonical body vertices (Vb, 3)."""
-    from scipy.spatial import cKDTree
-
-    _, nu = cKDTree(canonical_body.detach().double().cpu().numpy()).query(template.detach().double().cpu().numpy(), workers=1)
-    nu = torch.as_tensor(nu, dtype=torch.long)
+    nu = nearest_indices(template[None], canonical_body[None])[0]
     pin = torch.zeros(len(template), dtype=torch.bool)
     pin[pins.long()] = True
     return Binding(nu, template - canonical_body[nu], pin)
