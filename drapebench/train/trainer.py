@@ -56,6 +56,8 @@ class Objective:
     loss_terms: (batch, Step) -> {term name: scalar tensor}, each term already weighted; the loss is their sum.
     key: content hash of everything that determines the run (method and training settings, seed, garment,
         body, material, data); resuming needs the same key.
+    evaluate: optional () -> {name: float}, called after every completed epoch (e.g. a validation metric);
+        its records (with the epoch and step) are :attr:`TrainResult.evaluations` and ``evaluations.csv``.
     """
 
     name: str
@@ -64,19 +66,22 @@ class Objective:
     batch: Callable[[np.ndarray, Step], Any]
     loss_terms: Callable[[Any, Step], dict[str, torch.Tensor]]
     key: str
+    evaluate: Callable[[], dict[str, float]] | None = None
 
 
 @dataclass
 class TrainResult:
     """train_s: training time in s (resumed runs included); n_steps: steps done; history: one record per
     step (step, epoch, lr, loss, each term, grad_norm); stopped: "done" or "time"; resumed_from: the
-    checkpoint a resumed run started from."""
+    checkpoint a resumed run started from; evaluations: one record per completed epoch (epoch, step and
+    the values of :attr:`Objective.evaluate`), empty without it."""
 
     train_s: float
     n_steps: int
     history: list[dict] = field(default_factory=list)
     stopped: str = "done"
     resumed_from: str | None = None
+    evaluations: list[dict] = field(default_factory=list)
 
 
 def train_config(cfg: Mapping[str, Any] | TrainConf | None) -> TrainConf:
@@ -98,8 +103,8 @@ def _bad_terms(terms: dict[str, torch.Tensor]) -> list[str]:
 
 def train(objective: Objective, cfg: Mapping[str, Any] | TrainConf | None, log_dir: str | Path | None = None,
           checkpoint_dir: str | Path | None = None) -> TrainResult:  # fmt: skip
-    """Train ``objective`` under budget ``cfg`` (see the module docstring). Writes ``losses.csv`` into
-    ``log_dir`` when given, and a resumable checkpoint ``<name>_partial_<key>.pt`` into ``checkpoint_dir``
+    """Train ``objective`` under budget ``cfg`` (see the module docstring). Writes ``losses.csv`` (and
+    ``evaluations.csv`` with :attr:`Objective.evaluate`) into ``log_dir`` when given, and a resumable checkpoint ``<name>_partial_<key>.pt`` into ``checkpoint_dir``
     (default: the cache's ``checkpoints``) every ``checkpoint_every`` steps, removed when training ends.
     Raises :class:`drapebench.errors.TrainingDiverged` naming the step and the loss term(s) on a
     non-finite loss, and the step on a non-finite gradient (no step is taken on either)."""
@@ -113,7 +118,7 @@ def train(objective: Objective, cfg: Mapping[str, Any] | TrainConf | None, log_d
     params = [p for g in opt.param_groups for p in g["params"]]
     path = Path(checkpoint_dir or cache_dir("checkpoints")) / f"{ob.name}_partial_{ob.key}.pt"
     rng = np.random.default_rng(cfg.seed)
-    step, history, t_prev, best_loss, best, resumed = 0, [], 0.0, math.inf, None, None
+    step, history, evaluations, t_prev, best_loss, best, resumed = 0, [], [], 0.0, math.inf, None, None
     ema = [p.detach().clone() for p in params] if cfg.ema_decay else None
     state = load_state(path, ob.key)
     if state is None:
@@ -123,6 +128,7 @@ def train(objective: Objective, cfg: Mapping[str, Any] | TrainConf | None, log_d
             torch._foreach_copy_(params, state["params"])
         opt.load_state_dict(state["opt"])
         step, history, t_prev, rng, order = state["step"], state["history"], state["train_s"], state["rng"], state["order"]
+        evaluations = state.get("evaluations", [])
         torch.set_rng_state(state["torch_rng"])
         ema, best_loss, best = state["ema"], state["best_loss"], state["best"]
         resumed = str(path)
@@ -164,6 +170,9 @@ def train(objective: Objective, cfg: Mapping[str, Any] | TrainConf | None, log_d
         if step % cfg.log_every == 0:
             bar.set_postfix({n: f"{v:.3g}" for n, v in history[-1].items() if n not in ("step", "epoch")})
         bar.update(1)
+        if ob.evaluate is not None and (step % steps_per_epoch == 0 or step == total):
+            with torch.no_grad():
+                evaluations.append({"epoch": epoch, "step": step, **ob.evaluate()})
         elapsed = time.perf_counter() - t0
         timed_out = deadline is not None and elapsed > deadline and step < total
         if step % cfg.checkpoint_every == 0 or step == total or timed_out:
@@ -172,9 +181,9 @@ def train(objective: Objective, cfg: Mapping[str, Any] | TrainConf | None, log_d
             since_ckpt = []
             save_state(path, {"key": ob.key, "step": step, "history": history, "train_s": t_prev + elapsed, "params": params,
                               "opt": opt.state_dict(), "rng": rng, "torch_rng": torch.get_rng_state(), "order": order,
-                              "ema": ema, "best_loss": best_loss, "best": best})  # fmt: skip
+                              "ema": ema, "best_loss": best_loss, "best": best, "evaluations": evaluations})  # fmt: skip
             if log_dir is not None:
-                write_losses(Path(log_dir) / "losses.csv", history)
+                _write_logs(Path(log_dir), history, evaluations)
         if timed_out:
             log.warning("%s: max_minutes (%g) reached at step %d of %d; keeping the state of lowest mean training loss "
                         "(%.4g); a time-cut run depends on machine speed (raise max_minutes or lower the steps for a "
@@ -187,6 +196,12 @@ def train(objective: Objective, cfg: Mapping[str, Any] | TrainConf | None, log_d
         if final is not None:  # the averaged (or best) weights are the model
             torch._foreach_copy_(params, final)
     if log_dir is not None:
-        write_losses(Path(log_dir) / "losses.csv", history)
+        _write_logs(Path(log_dir), history, evaluations)
     path.unlink(missing_ok=True)
-    return TrainResult(t_prev + time.perf_counter() - t0, step, history, stopped, resumed)
+    return TrainResult(t_prev + time.perf_counter() - t0, step, history, stopped, resumed, evaluations)
+
+
+def _write_logs(log_dir: Path, history: list[dict], evaluations: list[dict]) -> None:
+    write_losses(log_dir / "losses.csv", history)
+    if evaluations:
+        write_losses(log_dir / "evaluations.csv", evaluations)

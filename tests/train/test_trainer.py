@@ -126,3 +126,25 @@ def test_lr_decays_over_the_step_or_the_time_budget_whichever_is_further():
 def test_an_unknown_train_key_is_named():
     with pytest.raises(ValueError, match=r"unknown train parameter\(s\) \['window'\]; valid: \[.*'epochs'"):
         train_config({"epochs": 2, "window": 3})
+
+
+def test_an_epoch_evaluation_runs_after_every_epoch_and_survives_a_resume(tmp_path):
+    def with_eval(**kw):
+        objective, params = toy(**kw)
+        objective.evaluate = lambda: {"w_norm": float(params[0].norm())}
+        return objective, params
+
+    objective, params = with_eval()
+    whole = train(objective, BUDGET, log_dir=tmp_path / "a", checkpoint_dir=tmp_path / "a" / "ckpt")
+    assert [e["epoch"] for e in whole.evaluations] == list(range(14))  # 40 steps of 3 per epoch: 13 epochs and a last part
+    assert whole.evaluations[-1]["step"] == 40
+    assert whole.evaluations[0]["w_norm"] < whole.evaluations[-2]["w_norm"]  # w moves from 0 towards its targets
+    rows = list(csv.DictReader((tmp_path / "a" / "evaluations.csv").open()))
+    assert [int(r["step"]) for r in rows] == [e["step"] for e in whole.evaluations]
+    objective, _ = with_eval(interrupt_at=7)
+    with pytest.raises(KeyboardInterrupt):
+        train(objective, BUDGET, log_dir=tmp_path / "b", checkpoint_dir=tmp_path / "b" / "ckpt")
+    objective, _ = with_eval()
+    resumed = train(objective, BUDGET, log_dir=tmp_path / "b", checkpoint_dir=tmp_path / "b" / "ckpt")
+    assert resumed.resumed_from is not None
+    assert [e["step"] for e in resumed.evaluations] == [e["step"] for e in whole.evaluations]
