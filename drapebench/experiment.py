@@ -12,7 +12,7 @@ import json
 import logging
 import os
 import time
-from functools import partial
+from functools import cache, partial
 from pathlib import Path
 
 import numpy as np
@@ -86,6 +86,8 @@ def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir
     (not for a generic method) + body + material) matches. Training writes its per-step ``losses.csv`` into ``log_dir`` (passed to
     ``fit`` as the train config's ``log_dir`` entry); a loaded checkpoint writes its saved one."""
     data_key = dataset_hash(train_cfg["dataset"]) if train_cfg.get("dataset") else None
+    if method.needs_reference:  # trained on the reference set of the `data` preset
+        data_key = OmegaConf.to_container(cfg.data, resolve=True)
     scene_garment = None if method.generic else (garment.vertices, garment.faces)  # one model for any garment: not keyed by it
     path = CHECKPOINTS.path(OmegaConf.to_container(cfg.method, resolve=True), train_cfg, data_key, scene_garment,
                             body_key(data.body), OmegaConf.to_container(cfg.material, resolve=True), prefix=cfg.method.name, suffix=".pt")  # fmt: skip
@@ -177,6 +179,22 @@ def run(cfg: DictConfig, out_dir: str | Path | None = None) -> dict:
         return record
 
 
+def _reference_train_data(cfg: DictConfig, garment, body, material, seq):
+    """TrainData whose training sequences and references are the reference set of ``cfg.data``, built (or
+    read from the cache) the first time training asks for them."""
+    from drapebench.data import References, TrainData
+    from drapebench.data.reference_set import load_reference_set
+
+    @cache
+    def reference_set():
+        refs = load_reference_set(cfg.data, garment, body, material, force=bool(cfg.force))
+        log.info("%s", refs.summary())
+        return refs
+
+    return TrainData(body=body, material=material, garment=garment, load_train=lambda: reference_set().sequences, test_sequences=[seq],
+                     references=References(lambda g, s: reference_set().references().get(g, s)))  # fmt: skip
+
+
 def _run(cfg: DictConfig, out: Path) -> dict:
     from drapebench.body import load_body, make_sequence
     from drapebench.body.dataset import build_dataset
@@ -212,10 +230,13 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     method = method_cls(OmegaConf.to_container(cfg.method.params, resolve=True))
     train_cfg = OmegaConf.to_container(cfg.train, resolve=True)
 
-    def load_train():
-        return H5Sequences(build_dataset(cfg.train.dataset, force=cfg.force))
+    if method_cls.needs_reference:  # a supervised method trains on reference drapes of the `data` preset
+        data = _reference_train_data(cfg, garment, body, material, seq)
+    else:
+        def load_train():
+            return H5Sequences(build_dataset(cfg.train.dataset, force=cfg.force))
 
-    data = TrainData(body=body, material=material, garment=garment, load_train=load_train, test_sequences=[seq])
+        data = TrainData(body=body, material=material, garment=garment, load_train=load_train, test_sequences=[seq])
     t = time.perf_counter()
     train_s, ckpt = _checkpoint(method, cfg, garment, data, train_cfg, log_dir=out)
     stages["fit_s"] = time.perf_counter() - t

@@ -1,0 +1,65 @@
+"""The VAE collision model's settings and their defaults (``method.params``; the reference data it trains
+on is the ``data`` config group, the shared budget ``conf/train``).
+
+Every value the paper leaves open is chosen here and listed in ``methods/vae/README.md``.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+from methods.params import method_params
+
+PROJECTION_DEFAULTS = dict(
+    init="inverse_skinning",  # inverse_skinning | previous: each frame starts from the previous frame's X
+    steps=40,  # Adam steps per frame (the first frame: 4x)
+    lr=2.0e-4,  # m per step
+    strain_weight=1.0,  # w1 of Eq. 9 on the mean squared Green-Lagrange strain (Eq. 11)
+    collision_weight=1.0,  # w2 of Eq. 9 on the mean hinge max(eps - SDF(X), 0) in mm (Eq. 12)
+    eps=0.002,  # collision margin (m) of Eq. 12 and Eq. 16
+)
+VAE_DEFAULTS = dict(
+    latent=25,  # latent size (the paper does not state it)
+    hidden=(512, 256),  # encoder widths; the decoder mirrors them
+    laplacian=1.0,  # lambda_1 of Eq. 13 (Eq. 15, L1 of mesh Laplacians, mm)
+    collision=1.0,  # lambda_2 (Eq. 16, mean hinge in mm over vertices)
+    selfsup=True,  # the second (sampled latent) term of Eq. 16; vae_no_selfsup: False
+    kl=1.0e-3,  # lambda_3 (KL per sample, summed over latent dimensions)
+    samples=8,  # z ~ N(0, I) samples per step for the self-supervised term
+    steps=None,  # training steps; None: the budget's (conf/train and schedule below)
+    schedule=dict(epochs=60, batch_size=32, lr=1.0e-3, lr_after=1.0e-4, lr_switch_epoch=45, ema_decay=None,
+                  lr_decay_fraction=None, grad_clip=10.0, checkpoint_every=200),  # fmt: skip
+)
+REGRESSOR_DEFAULTS = dict(
+    pose="learned",  # learned (a 10-D pose descriptor, the paper's [52]) | rotations (the joints' axis-angles)
+    pose_code=10,  # size of the learned pose descriptor
+    pose_steps=1500,  # training steps of the pose descriptor's autoencoder (batch 256)
+    hidden=256,
+    layers=2,
+    window=30,  # frames per training window (the GRU starts from a zero state)
+    velocity=1.0,  # rho_1 of Eq. 18
+    acceleration=1.0,  # rho_2
+    schedule=dict(epochs=150, batch_size=8, lr=1.0e-3, lr_after=1.0e-4, lr_switch_epoch=120, ema_decay=None,
+                  lr_decay_fraction=None, grad_clip=10.0, checkpoint_every=200),  # fmt: skip
+)
+METHOD_DEFAULTS = dict(
+    diffused={},  # drapebench.body.diffused settings (N samples, spread, MLP sizes), see DIFFUSED_DEFAULTS
+    sdf={},  # drapebench.body.canonical_sdf settings of the canonical body's learned SDF
+    projection=PROJECTION_DEFAULTS,
+    vae=VAE_DEFAULTS,
+    regressor=REGRESSOR_DEFAULTS,
+    val_sequences=1,  # reference sequences held out of training: the validation set of Fig. 4
+)
+
+
+def vae_params(cfg: Mapping[str, Any] | None) -> dict:
+    """The VAE model's parameters: the defaults updated by ``cfg`` (``method.params``; ``projection``, ``vae``
+    and ``regressor`` update their own defaults). Raises ValueError naming an unknown key or a bad choice."""
+    p = method_params("vae", cfg, METHOD_DEFAULTS, {"projection": PROJECTION_DEFAULTS, "vae": VAE_DEFAULTS,
+                                                     "regressor": REGRESSOR_DEFAULTS})  # fmt: skip
+    for section, key, allowed in (("projection", "init", ("inverse_skinning", "previous")), ("regressor", "pose", ("learned", "rotations"))):
+        if p[section][key] not in allowed:
+            raise ValueError(f"vae parameter {section}.{key} must be one of {', '.join(allowed)}, not {p[section][key]!r}")
+    if int(p["vae"]["latent"]) < 1:
+        raise ValueError(f"vae parameter vae.latent must be >= 1, got {p['vae']['latent']}")
+    return p

@@ -1,0 +1,56 @@
+"""The regressor's per-frame input (Eq. 17): a pose code with its velocity and acceleration, the root
+translation's and root rotation's (Euler angles) velocities and accelerations, and the body shape.
+Derivatives are backward finite differences at the sequence's frame rate (zero at the first frame)."""
+
+from __future__ import annotations
+
+import math
+
+import torch
+
+from drapebench.body.lbs import axis_angle_to_matrix
+
+
+def euler_zxy(R: torch.Tensor) -> torch.Tensor:
+    """Angles (a, b, c) (..., 3) rad with R = Rz(a) Rx(b) Ry(c) for rotation matrices R (..., 3, 3)."""
+    b = torch.asin(R[..., 2, 1].clamp(-1.0, 1.0))
+    a = torch.atan2(-R[..., 0, 1], R[..., 1, 1])
+    c = torch.atan2(-R[..., 2, 0], R[..., 2, 2])
+    return torch.stack([a, b, c], -1)
+
+
+def unwrap(angles: torch.Tensor) -> torch.Tensor:
+    """Angles (T, ...) rad made continuous over time (steps between frames wrapped into [-pi, pi))."""
+    step = torch.diff(angles, dim=0)
+    step = torch.remainder(step + math.pi, 2 * math.pi) - math.pi
+    return torch.cat([angles[:1], angles[:1] + torch.cumsum(step, 0)])
+
+
+def derivative(x: torch.Tensor, fps: float) -> torch.Tensor:
+    """Backward difference of x (T, ...) per second (x units / s); zero at the first frame."""
+    return torch.cat([torch.zeros_like(x[:1]), torch.diff(x, dim=0) * fps])
+
+
+def pose_rotations(poses: torch.Tensor) -> torch.Tensor:
+    """Rotation matrices (T, J-1, 3, 3) of the non-root joints of poses (T, J, 3) (axis-angle, rad)."""
+    return axis_angle_to_matrix(poses[:, 1:])
+
+
+def motion_descriptor(seq, pose_code=None, n_betas: int = 10) -> torch.Tensor:
+    """Per-frame regressor input (T, 3P + 12 + n_betas) of a body sequence: [phi, dphi, d2phi, dH, d2H, dK, d2K,
+    beta] with phi the pose code ``pose_code(rotations (T, J-1, 3, 3)) -> (T, P)`` (None: the non-root joints'
+    axis-angles, P = 3 (J-1)), H the root translation (m), K the root rotation's Euler angles (rad) and beta
+    the sequence's body shape zero-padded to ``n_betas``."""
+    poses = seq.poses.float()
+    phi = poses[:, 1:].flatten(1) if pose_code is None else pose_code(pose_rotations(poses))
+    H = seq.trans.float()
+    K = unwrap(euler_zxy(axis_angle_to_matrix(poses[:, 0])))
+    fps = float(seq.fps)
+    parts = [phi, derivative(phi, fps), derivative(derivative(phi, fps), fps)]
+    for x in (H, K):
+        v = derivative(x, fps)
+        parts += [v, derivative(v, fps)]
+    if len(seq.betas) > n_betas:
+        raise ValueError(f"{seq.name}: {len(seq.betas)} betas, the body has {n_betas}")
+    betas = torch.nn.functional.pad(seq.betas.float(), (0, n_betas - len(seq.betas)))[None].expand(len(poses), -1)
+    return torch.cat([*parts, betas], -1)

@@ -1,0 +1,21 @@
+"""The garment model of Eq. 7-8: canonical (unposed, deshaped) vertices X, the diffused shape (and pose)
+offsets added, then skinned with the diffused weights evaluated at X. The same function unprojects a
+canonical garment and is the data term of the projection (Eq. 10)."""
+
+from __future__ import annotations
+
+import torch
+
+from drapebench.body.lbs import lbs
+
+
+def unposed(diffused, X: torch.Tensor, betas: torch.Tensor) -> torch.Tensor:
+    """T_G of Eq. 8 without pose correctives: X (B, V, 3) m + the diffused shape offsets of body shape
+    betas (B, S) -> (B, V, 3) m on the shaped rest body."""
+    return X + diffused.shape_offsets(X, betas[:, None, :].expand(-1, X.shape[1], -1))
+
+
+def garment_model(diffused, X: torch.Tensor, betas: torch.Tensor, transforms: torch.Tensor) -> torch.Tensor:
+    """M_G of Eq. 7: canonical vertices X (B, V, 3) m posed by the body's skinning transforms (B, J, 4, 4)
+    (translation included) for body shapes betas (B, S) -> (B, V, 3) m. Differentiable in X."""
+    return lbs(unposed(diffused, X, betas), diffused.weights(X), transforms)

@@ -1,0 +1,44 @@
+"""The VAE's loss (Eq. 13-16) and the regressor's (Eq. 18), each term weighted, in mm where a length."""
+
+from __future__ import annotations
+
+import torch
+
+from drapebench.physics.energies import laplacian
+
+
+def collision(sdf, X: torch.Tensor, eps: float) -> torch.Tensor:
+    """Mean over vertices and garments of max(eps - SDF(X), 0) in mm for canonical garments X (B, V, 3) m."""
+    return ((eps - sdf(X)).clamp_min(0) * 1e3).mean()
+
+
+def vae_terms(vae, sdf, topology, X: torch.Tensor, p: dict, eps: float, generator: torch.Generator | None = None) -> dict:
+    """Eq. 13's weighted terms for a batch of canonical garments X (B, V, 3) m: reconstruction (Eq. 14, L1,
+    mm), Laplacian (Eq. 15, L1 of the cotangent Laplacians, mm), collision on the reconstructions and, with
+    ``selfsup``, on decodings of z ~ N(0, I) (Eq. 16, mm), KL (nats per garment); a term of weight 0 is left out."""
+    mu, logvar = vae.encode(X)
+    z = mu + torch.randn(mu.shape, generator=generator, dtype=mu.dtype) * torch.exp(0.5 * logvar)
+    Y = vae.decode(z)
+    terms = {"reconstruction": ((Y - X).abs() * 1e3).sum(-1).mean()}
+    if p["laplacian"]:
+        terms["laplacian"] = p["laplacian"] * ((laplacian(Y, topology) - laplacian(X, topology)).abs() * 1e3).sum(-1).mean()
+    if p["kl"]:
+        terms["kl"] = p["kl"] * (-0.5 * (1 + logvar - mu.square() - logvar.exp()).sum(-1)).mean()
+    if p["collision"]:
+        terms["collision"] = p["collision"] * collision(sdf, Y, eps)
+        if p["selfsup"]:
+            z_rand = torch.randn((p["samples"], vae.latent), generator=generator, dtype=mu.dtype)
+            terms["collision_sampled"] = p["collision"] * collision(sdf, vae.decode(z_rand), eps)
+    return terms
+
+
+def regressor_terms(pred: torch.Tensor, target: torch.Tensor, p: dict) -> dict:
+    """Eq. 18 for latent codes pred and target (B, T, latent): L1 of positions, and (weighted rho_1, rho_2)
+    of velocities and accelerations (finite differences per frame), means over codes and frames."""
+    terms = {"position": (pred - target).abs().mean()}
+    dp, dt = torch.diff(pred, dim=1), torch.diff(target, dim=1)
+    if p["velocity"]:
+        terms["velocity"] = p["velocity"] * (dp - dt).abs().mean()
+    if p["acceleration"]:
+        terms["acceleration"] = p["acceleration"] * (torch.diff(dp, dim=1) - torch.diff(dt, dim=1)).abs().mean()
+    return terms

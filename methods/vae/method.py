@@ -1,0 +1,270 @@
+"""The VAE collision model (Santesteban et al., CVPR 2021): reference drapes projected to a canonical
+(unposed, deshaped) space, a VAE of canonical garments trained with a self-supervised collision term, and
+a GRU regressing its latent code from the motion; inference decodes the code and poses it with the
+diffused body model. One model per garment, supervised by physics-based reference drapes. See
+``methods/vae/README.md`` for the paper-to-code map and every choice the paper leaves open."""
+
+from __future__ import annotations
+
+import logging
+import time
+
+import torch
+
+from drapebench.cache import Cache, body_key, content_hash
+from drapebench.train import Objective, train, train_config
+from methods.base import DrapeResult, DrapingMethod, FitReport
+from methods.vae import losses
+from methods.vae.config import vae_params
+from methods.vae.descriptor import motion_descriptor, pose_rotations
+from methods.vae.garment_model import garment_model
+from methods.vae.network import GarmentVAE, PoseDescriptor, Regressor
+from methods.vae.projection import Projection, project_sequences
+
+log = logging.getLogger("drapebench")
+PROJECTIONS = Cache("vae", 1)  # canonical projections of the reference drapes
+POSE_SCHEDULE = dict(batch_size=256, lr=1.0e-3, lr_after=None, lr_switch_epoch=None, grad_clip=None, ema_decay=None,
+                     lr_decay_fraction=0.3, checkpoint_every=500)  # fmt: skip
+
+
+def _timed(timings: dict, name: str, fn, *args):
+    t = time.perf_counter()
+    out = fn(*args)
+    timings[name] = timings.get(name, 0.0) + (time.perf_counter() - t) * 1e3
+    return out
+
+
+class VAEModel(DrapingMethod):
+    """The VAE collision model and its ablations (see the module docstring)."""
+
+    name = "vae"
+    generic = False
+    needs_reference = True
+
+    def __init__(self, cfg=None):
+        super().__init__(cfg)
+        self.p = vae_params(self.cfg)
+        self.vae = self.regressor = self.pose = None
+        self.diffused = self.sdf = None
+        self.template = None
+        self.evaluations: list[dict] = []
+        self.projection_stats: dict = {}
+
+    # ------------------------------------------------------------------ shared pieces
+    def _body_fields(self) -> None:
+        """The diffused body model and the canonical body's learned SDF (fitted once per body, cached); fields
+        already set are kept."""
+        if self.diffused is None:
+            from drapebench.body import fit_diffused_body
+
+            self.diffused = fit_diffused_body(self.body, self.p["diffused"] or None)
+        if self.sdf is None:
+            from drapebench.body import fit_body_sdf
+
+            self.sdf = fit_body_sdf(self.body, self.p["sdf"] or None)
+
+    def _canonical_template(self, garment) -> torch.Tensor:
+        """The garment template (V, 3) m moved to the mean body shape (the canonical space's)."""
+        X = garment.vertices.to(self.body.dtype)
+        betas = garment.betas.to(X.dtype)[: self.body.n_betas]
+        if bool((betas != 0).any()):
+            with torch.no_grad():
+                X = X - self.diffused.shape_offsets(X, betas[None].expand(len(X), -1))
+        return X
+
+    def _betas(self, seq) -> torch.Tensor:
+        """The sequence's body shape (S,) zero-padded to the body's betas."""
+        b = seq.betas.to(self.body.dtype)[: self.body.n_betas]
+        return torch.nn.functional.pad(b, (0, self.body.n_betas - len(b)))
+
+    def _new_vae(self, n_vertices: int) -> GarmentVAE:
+        v = self.p["vae"]
+        return GarmentVAE(n_vertices, int(v["latent"]), v["hidden"]).to(self.body.dtype)
+
+    def _pose_code(self):
+        return None if self.pose is None else self.pose.code
+
+    def _descriptor(self, seq) -> torch.Tensor:
+        with torch.no_grad():
+            return motion_descriptor(seq, self._pose_code(), self.body.n_betas).to(self.body.dtype)
+
+    # ------------------------------------------------------------------ training
+    def fit(self, data, train_cfg=None) -> FitReport:
+        """Project the reference drapes of ``data`` (TrainData with references) to the canonical space, train
+        the VAE on them, then the pose descriptor and the regressor; ``train_cfg`` is the shared budget
+        (its ``log_dir`` gets ``losses.csv`` of the regressor and ``vae/losses.csv``, ``vae/evaluations.csv``)."""
+        t0 = time.perf_counter()
+        self.bind(data.body, data.material)
+        garment = data.garment
+        train_cfg = dict(train_cfg or {})
+        log_dir = train_cfg.pop("log_dir", None)
+        train_cfg.pop("dataset", None)  # the VAE trains on reference drapes (the data group), not a body dataset
+        self._body_fields()
+        self.topology = garment.topology
+        self.template = self._canonical_template(garment)
+        seqs = [s for s in data.train_sequences if data.reference(garment, s) is not None]
+        if len(seqs) < 2:
+            raise ValueError(f"vae: {len(seqs)} reference drapes of {garment.name}; it needs at least 2 (one for validation): "
+                             "build more with a larger data preset (data=cpu, data=paper)")  # fmt: skip
+        proj = self._project(garment, seqs, [data.reference(garment, s) for s in seqs])
+        n_val = int(self.p["val_sequences"])
+        train_X, val_X = proj.X[:-n_val], proj.X[-n_val:]
+        history = []
+        res = self._train_vae(train_X.flatten(0, 1), val_X.flatten(0, 1), train_cfg, log_dir)
+        history += [{"stage": "vae", **h} for h in res.history]
+        self.evaluations = res.evaluations
+        with torch.no_grad():
+            codes = torch.stack([self.vae.encode(x)[0] for x in train_X])  # (N, T, latent): the posterior means
+        train_seqs = seqs[:-n_val]
+        if self.p["regressor"]["pose"] == "learned":
+            res_pose = self._train_pose(train_seqs, train_cfg)
+            history += [{"stage": "pose", **h} for h in res_pose.history]
+        res_r = self._train_regressor(train_seqs, codes, train_cfg, log_dir)
+        history += [{"stage": "regressor", **h} for h in res_r.history]
+        return FitReport(train_s=time.perf_counter() - t0, n_steps=len(history), final_losses=res_r.history[-1] if res_r.history else {},
+                         history=history)  # fmt: skip
+
+    def _project(self, garment, seqs, drapes) -> Projection:
+        """Canonical projections of the reference drapes (cached by content), sequences of one length at a time."""
+        body, cfg = self.body, self.p["projection"]
+        path = PROJECTIONS.path(cfg, self.p["diffused"], self.p["sdf"], body_key(body), garment.vertices, garment.faces,
+                                [(s.betas, s.poses, s.trans, s.fps) for s in seqs], drapes, prefix="projection", suffix=".pt")  # fmt: skip
+        hit = PROJECTIONS.load(path, lambda p: torch.load(p, weights_only=False))
+        if hit is None:
+            hit = [None] * len(seqs)
+            for T in sorted({s.n_frames for s in seqs}):
+                idx = [i for i, s in enumerate(seqs) if s.n_frames == T]
+                with torch.no_grad():
+                    A = torch.stack([seqs[i].transforms(body).to(body.dtype) for i in idx])
+                betas = torch.stack([self._betas(seqs[i]) for i in idx])
+                frames = torch.stack([drapes[i].to(body.dtype) for i in idx])
+                p = project_sequences(self.diffused, self.sdf, garment.topology, self.template, frames, betas, A, cfg,
+                                      desc=f"vae projection ({len(idx)} sequences)")  # fmt: skip
+                for j, i in enumerate(idx):
+                    hit[i] = Projection(p.X[j], p.residual_mm[j], p.colliding[j])
+            PROJECTIONS.store(path, lambda tmp: torch.save(hit, tmp))
+        lengths = {p.X.shape[0] for p in hit}
+        if len(lengths) > 1:
+            raise ValueError(f"vae: reference sequences of different lengths {sorted(lengths)}; use one n_frames in the data preset")
+        proj = Projection(torch.stack([p.X for p in hit]), torch.stack([p.residual_mm for p in hit]), torch.stack([p.colliding for p in hit]))
+        self.projection_stats = {"residual_mm": float(proj.residual_mm.mean()), "residual_mm_max": float(proj.residual_mm.max()),
+                                 "canonical_colliding_pct": 100 * float(proj.colliding.mean())}  # fmt: skip
+        log.info("vae: projected %d frames: residual %.2f mm (max %.2f), %.3f %% of vertices inside the canonical body",
+                 proj.X.shape[0] * proj.X.shape[1], *self.projection_stats.values())  # fmt: skip
+        return proj
+
+    def _budget(self, train_cfg: dict, schedule: dict, steps=None):
+        cfg = {**train_cfg, **schedule}
+        if steps is not None:
+            cfg["steps"] = int(steps)
+        return train_config(cfg)
+
+    def _train_vae(self, X: torch.Tensor, X_val: torch.Tensor, train_cfg: dict, log_dir):
+        """Train the VAE (Eq. 13) on canonical garments X (N, V, 3); the per-epoch evaluation is Fig. 4's:
+        the % of vertices of the validation reconstructions inside the canonical body."""
+        v, eps = self.p["vae"], self.p["projection"]["eps"]
+        budget = self._budget(train_cfg, v["schedule"], v["steps"])
+        torch.manual_seed(budget.seed)
+        self.vae = self._new_vae(X.shape[1])
+        with torch.no_grad():
+            self.vae.mean.copy_(X.mean(0))
+            self.vae.scale.copy_((X - X.mean(0)).std().clamp_min(1e-4))
+        gen = torch.Generator().manual_seed(budget.seed)
+
+        def evaluate() -> dict:
+            Y = self.vae.decode(self.vae.encode(X_val)[0])
+            z = torch.randn((256, self.vae.latent), generator=torch.Generator().manual_seed(1), dtype=X.dtype)
+            return {"val_colliding_pct": 100 * float((self.sdf(Y) < 0).to(X.dtype).mean()),
+                    "val_error_mm": 1e3 * float((Y - X_val).norm(dim=-1).mean()),
+                    "sampled_colliding_pct": 100 * float((self.sdf(self.vae.decode(z)) < 0).to(X.dtype).mean())}  # fmt: skip
+
+        key = content_hash(self.p["vae"], eps, budget, X, self.template, "vae")
+        objective = Objective("vae", [{"params": list(self.vae.parameters()), "lr_factor": 1.0}], len(X),
+                              lambda idx, at: X[torch.as_tensor(idx)],
+                              lambda b, at: losses.vae_terms(self.vae, self.sdf, self.topology, b, v, eps, gen), key, evaluate)  # fmt: skip
+        return train(objective, budget, log_dir=None if log_dir is None else f"{log_dir}/vae")
+
+    def _train_pose(self, seqs, train_cfg: dict):
+        """Train the learned pose descriptor (an autoencoder of the training poses' non-root rotations)."""
+        r = self.p["regressor"]
+        budget = self._budget(train_cfg, POSE_SCHEDULE, r["pose_steps"])
+        torch.manual_seed(budget.seed)
+        self.pose = PoseDescriptor(self.body.n_joints, int(r["pose_code"])).to(self.body.dtype)
+        R = torch.cat([pose_rotations(s.poses.to(self.body.dtype)) for s in seqs])
+        key = content_hash(r["pose_code"], budget, R, "pose")
+
+        def terms(b, at):
+            return {"reconstruction": (self.pose(b) - b.flatten(-3)).square().mean()}
+
+        objective = Objective("vae_pose", [{"params": list(self.pose.parameters()), "lr_factor": 1.0}], len(R),
+                              lambda idx, at: R[torch.as_tensor(idx)], terms, key)  # fmt: skip
+        res = train(objective, budget)
+        for q in self.pose.parameters():
+            q.requires_grad_(False)
+        return res
+
+    def _train_regressor(self, seqs, codes: torch.Tensor, train_cfg: dict, log_dir):
+        """Train the GRU regressor (Eq. 18) on windows of the training sequences' descriptors and latent codes (N, T, latent)."""
+        r = self.p["regressor"]
+        budget = self._budget(train_cfg, r["schedule"])
+        desc = torch.stack([self._descriptor(s) for s in seqs])  # (N, T, D)
+        self._n_in = desc.shape[-1]
+        torch.manual_seed(budget.seed)
+        self.regressor = Regressor(self._n_in, self.vae.latent, int(r["hidden"]), int(r["layers"])).to(self.body.dtype)
+        with torch.no_grad():
+            flat = desc.flatten(0, 1)
+            self.regressor.input_mean.copy_(flat.mean(0))
+            self.regressor.input_std.copy_(flat.std(0).clamp_min(1e-6))
+        T, W = desc.shape[1], min(int(r["window"]), desc.shape[1])
+        starts = [(n, s) for n in range(len(seqs)) for s in range(0, T - W + 1, max(1, W // 2))]
+
+        def batch(idx, at):
+            rows = [starts[i] for i in idx]
+            return (torch.stack([desc[n, s : s + W] for n, s in rows]), torch.stack([codes[n, s : s + W] for n, s in rows]))
+
+        key = content_hash(r, budget, desc, codes, "regressor")
+        objective = Objective("vae_regressor", [{"params": list(self.regressor.parameters()), "lr_factor": 1.0}], len(starts),
+                              batch, lambda b, at: losses.regressor_terms(self.regressor(b[0])[0], b[1], r), key)  # fmt: skip
+        return train(objective, budget, log_dir=log_dir)
+
+    # ------------------------------------------------------------------ inference
+    def drape(self, garment, seq) -> DrapeResult:
+        """Regress the latent code per frame, decode it to the canonical garment and pose it with the diffused body."""
+        self._require_bound()
+        if self.vae is None or self.regressor is None:
+            raise RuntimeError("vae: call fit(data) or load_state_dict(...) before drape()")
+        if garment.n_vertices != self.template.shape[0]:
+            raise ValueError(f"vae model was trained for a garment of {self.template.shape[0]} vertices, "
+                             f"got {garment.name} with {garment.n_vertices}; train one per garment")  # fmt: skip
+        timings: dict[str, float] = {}
+        body = self.body
+        with torch.no_grad():
+            desc = _timed(timings, "descriptor", self._descriptor, seq)
+            z = _timed(timings, "regressor", lambda: self.regressor(desc[None])[0][0])
+            X = _timed(timings, "decoder", self.vae.decode, z)
+            A = _timed(timings, "body", lambda: seq.transforms(body).to(body.dtype))
+            betas = self._betas(seq)[None].expand(len(X), -1)
+            x = _timed(timings, "projection", garment_model, self.diffused, X, betas, A)
+        return DrapeResult(x, timings, {"canonical": X})
+
+    # ------------------------------------------------------------------ state
+    def state_dict(self) -> dict:
+        return {"vae": self.vae.state_dict(), "regressor": self.regressor.state_dict(), "pose": None if self.pose is None else self.pose.state_dict(),
+                "n_vertices": self.template.shape[0], "n_in": self._n_in, "template": self.template,
+                "evaluations": self.evaluations, "projection_stats": self.projection_stats}  # fmt: skip
+
+    def load_state_dict(self, state) -> None:
+        self._require_bound()
+        self._body_fields()
+        self.template = state["template"].to(self.body.dtype)
+        self.vae = self._new_vae(int(state["n_vertices"]))
+        self.vae.load_state_dict(state["vae"])
+        r = self.p["regressor"]
+        self.pose = None
+        if state["pose"] is not None:
+            self.pose = PoseDescriptor(self.body.n_joints, int(r["pose_code"])).to(self.body.dtype)
+            self.pose.load_state_dict(state["pose"])
+        self._n_in = int(state["n_in"])
+        self.regressor = Regressor(self._n_in, self.vae.latent, int(r["hidden"]), int(r["layers"])).to(self.body.dtype)
+        self.regressor.load_state_dict(state["regressor"])
+        self.evaluations, self.projection_stats = list(state["evaluations"]), dict(state["projection_stats"])

@@ -1,0 +1,240 @@
+"""The VAE collision model: the motion descriptor, the garment model and its projection (Eq. 7-12), the VAE
+and regressor losses (Eq. 13-18), and a tiny end-to-end fit whose state round-trips through a checkpoint.
+
+The diffused body and the canonical SDF are stand-ins here (nearest-vertex values, a sphere), so these
+tests check the method's own code; tests/body holds those of the fitted fields."""
+
+import math
+
+import pytest
+import torch
+
+from drapebench.body import load_body, make_sequence
+from drapebench.body.lbs import axis_angle_to_matrix
+from drapebench.geometry.proximity import nearest_indices
+from drapebench.geometry.topology import get_topology
+from methods.vae import losses
+from methods.vae.config import vae_params
+from methods.vae.descriptor import derivative, euler_zxy, motion_descriptor, unwrap
+from methods.vae.garment_model import garment_model
+from methods.vae.network import GarmentVAE
+from methods.vae.projection import project_sequences
+from tests.meshes import grid_mesh
+
+
+class NearestDiffused:
+    """Stand-in diffused body: the values of the nearest canonical body vertex."""
+
+    def __init__(self, body):
+        self.body = body
+        self.rest = body.shaped()[0][0]
+
+    def _nn(self, p):
+        flat = p.reshape(-1, 3)
+        return nearest_indices(flat[None].detach(), self.rest[None])[0].reshape(p.shape[:-1])
+
+    def weights(self, p):
+        return self.body.weights[self._nn(p)]
+
+    def shape_offsets(self, p, betas):
+        dirs = self.body.shapedirs[self._nn(p)][..., : betas.shape[-1]]
+        return torch.einsum("...cs,...s->...c", dirs, betas)
+
+
+class SphereSDF:
+    """Signed distance (m) to a sphere of radius r at c."""
+
+    def __init__(self, c=(0.0, 0.0, 1.0), r=0.2):
+        self.c, self.r = torch.tensor(c), r
+
+    def __call__(self, p):
+        return (p - self.c).norm(dim=-1) - self.r
+
+
+@pytest.fixture(scope="module")
+def body():
+    return load_body("anny_lowres")
+
+
+def _rot(axis, angle):
+    aa = torch.zeros(3)
+    aa["xyz".index(axis)] = angle
+    return axis_angle_to_matrix(aa)
+
+
+def test_euler_zxy_recovers_the_angles_and_unwrap_removes_the_2pi_jumps():
+    a, b, c = 0.7, -0.4, 1.1
+    R = _rot("z", a) @ _rot("x", b) @ _rot("y", c)
+    assert torch.allclose(euler_zxy(R), torch.tensor([a, b, c]), atol=1e-5)
+    angles = torch.tensor([3.0, 3.1, -3.1, -3.0])[:, None]  # crossing pi
+    steps = torch.diff(unwrap(angles), dim=0)
+    assert torch.allclose(steps, torch.tensor([[0.1], [2 * math.pi - 6.2], [0.1]]), atol=1e-5)
+
+
+def test_the_descriptor_holds_velocities_and_accelerations_at_the_frame_rate():
+    x = torch.arange(5.0)[:, None] * 0.1  # 0.1 m per frame
+    assert torch.allclose(derivative(x, 30.0)[1:], torch.full((4, 1), 3.0))  # m/s
+    seq = make_sequence("walk", 20, fps=30.0, seed=1)
+    d = motion_descriptor(seq)
+    P = 3 * (seq.poses.shape[1] - 1)
+    assert d.shape == (seq.n_frames, 3 * P + 12 + len(seq.betas))
+    v_H = d[:, 3 * P : 3 * P + 3]
+    assert torch.allclose(v_H[1:], torch.diff(seq.trans, dim=0) * 30.0, atol=1e-5)
+    code = lambda R: R.flatten(-3)[..., :4]  # noqa: E731 - any pose code of 4 values
+    assert motion_descriptor(seq, code).shape[1] == 3 * 4 + 12 + len(seq.betas)
+
+
+def _posed_frames(body, X, seq, diffused):
+    betas = seq.betas[None, : body.n_betas].expand(seq.n_frames, -1)
+    with torch.no_grad():
+        return garment_model(diffused, X[None].expand(seq.n_frames, -1, -1), betas, seq.transforms(body))
+
+
+def _garment_near(body, n=6):
+    """A small sheet in front of the chest of the canonical body: vertices (V, 3), Topology."""
+    V, F = grid_mesh(n, 0.2)
+    rest = body.shaped()[0][0]
+    front = rest[:, 1].min() - 0.03  # the body faces -Y
+    chest = rest[:, 2].max() * 0.72
+    V = torch.as_tensor(V, dtype=torch.float32)
+    X = torch.stack([V[:, 0], torch.full_like(V[:, 0], float(front)), V[:, 1] + float(chest)], -1)
+    return X, get_topology(X.numpy(), F)
+
+
+def test_projection_then_unprojection_returns_the_simulated_frames(body):
+    diffused = NearestDiffused(body)
+    X, topo = _garment_near(body)
+    seq = make_sequence("walk", 6, seed=2, betas=[0.5, -0.5, 0, 0], transition=2)
+    frames = _posed_frames(body, X + torch.tensor([0.003, -0.004, 0.002]), seq, diffused)  # moved off the template, unstrained
+    cfg = {**vae_params(None)["projection"], "steps": 5}
+    far = SphereSDF(c=(5.0, 5.0, 5.0), r=0.1)  # no collisions: the data term alone decides
+    p = project_sequences(diffused, far, topo, X, frames[None], seq.betas[None, : body.n_betas], seq.transforms(body)[None], cfg)
+    assert p.X.shape == (1, seq.n_frames, len(X), 3)
+    assert p.residual_mm.max() < 0.5  # unprojected projection within 0.5 mm of the simulated frame
+    again = _posed_frames(body, p.X[0, -1], seq, diffused)[-1]
+    assert (again - frames[-1]).norm(dim=-1).max() < 2e-3
+
+
+def test_the_projection_collision_term_pushes_vertices_out_of_the_canonical_body(body):
+    diffused = NearestDiffused(body)
+    X, topo = _garment_near(body)
+    seq = make_sequence("static", 2, seed=0, transition=0)
+    frames = _posed_frames(body, X, seq, diffused)
+    sdf = SphereSDF(c=tuple((X.mean(0) + torch.tensor([0.0, 0.025, 0.0])).tolist()), r=0.04)  # a bump of the body through the sheet
+    cfg = {**vae_params(None)["projection"], "steps": 30, "lr": 1e-3, "collision_weight": 50.0}
+    args = (diffused, sdf, topo, X, frames[None], seq.betas[None, : body.n_betas], seq.transforms(body)[None])
+    with_c = project_sequences(*args, cfg)
+    without = project_sequences(*args, {**cfg, "collision_weight": 0.0})
+    assert with_c.colliding[0, -1] < 0.5 * without.colliding[0, -1]
+    assert without.colliding[0, -1] > 0
+
+
+def test_the_collision_term_is_zero_outside_and_positive_inside():
+    sdf = SphereSDF(c=(0.0, 0.0, 0.0), r=0.1)
+    outside = torch.tensor([[[0.2, 0.0, 0.0], [0.0, 0.15, 0.0]]])
+    inside = torch.tensor([[[0.05, 0.0, 0.0], [0.0, 0.2, 0.0]]])
+    assert losses.collision(sdf, outside, 0.002) == 0
+    assert losses.collision(sdf, inside, 0.002) == pytest.approx(1e3 * (0.002 + 0.05) / 2, rel=1e-4)  # mm, mean over vertices
+
+
+def _vae_terms(p_overrides, X, topo, sdf):
+    p = {**vae_params(None)["vae"], **p_overrides}
+    torch.manual_seed(0)
+    vae = GarmentVAE(len(X[0]), p["latent"], (16, 8))
+    with torch.no_grad():
+        vae.mean.copy_(X.mean(0))
+        vae.scale.fill_(0.01)
+    return losses.vae_terms(vae, sdf, topo, X, p, 0.002, torch.Generator().manual_seed(0)), vae
+
+
+def test_vae_terms_follow_eq13_to_16(body):
+    X0, topo = _garment_near(body, 4)
+    X = X0[None] + 0.01 * torch.randn(3, *X0.shape, generator=torch.Generator().manual_seed(0))
+    inside_all = SphereSDF(c=tuple(X0.mean(0).tolist()), r=1.0)  # every vertex inside: both collision terms positive
+    terms, vae = _vae_terms({}, X, topo, inside_all)
+    assert set(terms) == {"reconstruction", "laplacian", "kl", "collision", "collision_sampled"}
+    assert all(v > 0 for v in terms.values())
+    no_self, _ = _vae_terms({"selfsup": False}, X, topo, inside_all)
+    assert "collision_sampled" not in no_self and "collision" in no_self
+    no_coll, _ = _vae_terms({"collision": 0.0}, X, topo, inside_all)
+    assert "collision" not in no_coll
+    with torch.no_grad():
+        mu, logvar = vae.encode(X)
+    with torch.no_grad():
+        kl = -0.5 * (1 + logvar - mu**2 - logvar.exp()).sum(-1)
+    assert float(terms["kl"].detach()) == pytest.approx(1e-3 * float(kl.mean()), rel=1e-5)
+
+
+def test_regressor_terms_penalise_positions_velocities_and_accelerations():
+    target = torch.zeros(2, 6, 3)
+    offset = target + 1.0  # right velocity and acceleration, wrong position
+    terms = losses.regressor_terms(offset, target, {"velocity": 1.0, "acceleration": 1.0})
+    assert terms["position"] == pytest.approx(1.0) and terms["velocity"] == 0 and terms["acceleration"] == 0
+    ramp = torch.arange(6.0)[None, :, None].expand(2, 6, 3)  # a velocity error of 1 per frame
+    terms = losses.regressor_terms(ramp, target, {"velocity": 2.0, "acceleration": 1.0})
+    assert terms["velocity"] == pytest.approx(2.0) and terms["acceleration"] == 0
+
+
+def test_unknown_and_invalid_parameters_are_named():
+    with pytest.raises(ValueError, match="unknown vae parameter"):
+        vae_params({"latnet": 3})
+    with pytest.raises(ValueError, match="regressor.pose must be one of learned, rotations"):
+        vae_params({"regressor": {"pose": "quaternions"}})
+
+
+def _tiny_scene(body):
+    """A small sheet garment, three short sequences and 'reference' drapes: the template posed by the
+    stand-in diffused body with a time-varying ripple."""
+    from types import SimpleNamespace
+
+    from drapebench.data import References, TrainData
+    from drapebench.physics import Material
+
+    X, topo = _garment_near(body, 5)
+    garment = SimpleNamespace(name="sheet", vertices=X, faces=topo.faces, topology=topo, betas=torch.zeros(10), n_vertices=len(X))
+    diffused = NearestDiffused(body)
+    seqs = [make_sequence(m, 8, seed=i, betas=[0.3 * i, 0, 0, 0], transition=2) for i, m in enumerate(["walk", "squat", "run"])]
+    drapes = {}
+    for s in seqs:
+        t = torch.arange(s.n_frames, dtype=torch.float32)[:, None, None]
+        wiggle = 0.003 * torch.sin(0.5 * t + 20 * X[None, :, :1])
+        drapes[s.name] = _posed_frames(body, X, s, diffused) + wiggle
+    refs = References(lambda g, s: drapes.get(s.name))
+    data = TrainData(body, Material(), garment, load_train=lambda: seqs, references=refs)
+    return garment, data, diffused, seqs
+
+
+TINY = {"projection": {"steps": 3}, "vae": {"hidden": [16], "latent": 4, "steps": 12, "samples": 2},
+        "regressor": {"hidden": 8, "layers": 1, "window": 4, "pose_steps": 5,
+                      "schedule": {"epochs": 2, "batch_size": 4, "lr_switch_epoch": None}}}  # fmt: skip
+
+
+def _tiny_model(body, diffused, sdf, cfg=TINY):
+    from methods.vae import VAEModel
+
+    m = VAEModel(cfg)
+    m.diffused, m.sdf = diffused, sdf  # stand-ins: _body_fields keeps fields that are set
+    return m
+
+
+def test_a_tiny_fit_drapes_and_its_state_round_trips(body, tmp_path):
+    garment, data, diffused, seqs = _tiny_scene(body)
+    sdf = SphereSDF(c=(5.0, 5.0, 5.0), r=0.1)
+    m = _tiny_model(body, diffused, sdf)
+    report = m.fit(data, {"seed": 0, "log_dir": str(tmp_path)})
+    assert {h["stage"] for h in report.history} == {"vae", "pose", "regressor"}
+    assert (tmp_path / "vae" / "evaluations.csv").exists() and (tmp_path / "losses.csv").exists()
+    assert [e["epoch"] for e in m.evaluations][:2] == [0, 1]
+    assert m.projection_stats["residual_mm"] < 5.0
+    test = make_sequence("kick", 6, seed=9, transition=2)
+    out = m.drape(garment, test)
+    assert out.vertices.shape == (test.n_frames, garment.n_vertices, 3) and torch.isfinite(out.vertices).all()
+    assert {"regressor", "decoder", "projection"} <= set(out.timings_ms)
+    state = m.state_dict()
+    again = _tiny_model(body, diffused, sdf)
+    again.bind(body, data.material)
+    again.load_state_dict(state)
+    assert torch.equal(again.drape(garment, test).vertices, out.vertices)
+    rotations = _tiny_model(body, diffused, sdf, {**TINY, "regressor": {**TINY["regressor"], "pose": "rotations"}})
+    rotations.fit(data, {"seed": 0})
+    assert rotations.pose is None and rotations.drape(garment, test).vertices.shape == out.vertices.shape
