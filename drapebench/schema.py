@@ -92,6 +92,7 @@ class ReferenceConf:
     damping: Optional[float] = None
     max_speed: Optional[float] = None
     device: Optional[str] = None  # None: cuda when available, else cpu
+    retry_substeps: Optional[List[int]] = None  # substeps tried in turn after a divergence; []: no retry
 
 
 @dataclass

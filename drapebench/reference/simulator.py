@@ -16,6 +16,14 @@ needs them), its BVH refitted and its bounding box updated (Newton culls contact
 had at model finalisation otherwise). ``garment.pins`` (waistband / neck band) are kinematic: they
 follow linear blend skinning of their start positions with their nearest rest-body vertex's
 weights; ``pins=False`` leaves them free.
+
+Failures (nothing is cached): :class:`SimulationDiverged` on NaN, a vertex faster than ``max_speed``
+or an edge stretched past ``MAX_STRETCH``; :class:`GarmentLeftBody` when the garment's centroid (mean
+vertex) leaves the body's axis-aligned bounding box grown by ``LEAVE_MARGIN`` on every side (it fell
+off) or drops into the lowest ``FEET_BAND`` of the body's height (it slid down to the feet), checked
+after every frame. After a failure the whole simulation is run again with each of
+``settings.retry_substeps`` in turn (a smaller step); every attempt is recorded in the record's
+``stats["attempts"]`` and the cache key stays the requested settings.
 """
 
 from __future__ import annotations
@@ -39,13 +47,18 @@ from drapebench.reference.settings import SimSettings
 REFERENCES = Cache("reference", 1)  # bump when the simulation or the stored format changes
 MAX_START_INSIDE = 0.01  # a garment with more of its vertices inside the rest body is rejected
 MAX_STRETCH = 4.0  # an edge longer than this x its rest length counts as a blow-up
+LEAVE_MARGIN = 0.10  # m: a garment centroid this far outside the body's bounding box has fallen off
+FEET_BAND = 0.15  # a garment centroid in this lowest fraction of the body's height has slid down to the feet
 
 
 class SimulationDiverged(DrapeFailed):
     """The reference simulation blew up (NaN, runaway speed or torn elements); nothing was cached.
 
-    Attributes: garment, sequence (names), frame (sequence frame, negative while settling), reason.
+    Attributes: garment, sequence (names), frame (sequence frame, negative while settling), reason;
+    attempts (substeps and failure of each try, see :func:`simulate_record`) once retries are done.
     """
+
+    verb = "diverged"
 
     def __init__(self, garment: str, sequence: str, frame: int, n_frames: int, reason: str, settings: SimSettings):
         self.garment, self.sequence, self.frame, self.reason = garment, sequence, frame, reason
@@ -53,14 +66,20 @@ class SimulationDiverged(DrapeFailed):
         where = f"settling frame {frame + settings.settle_frames} of {settings.settle_frames}" if frame < 0 else \
             f"frame {frame} of {n_frames}"  # fmt: skip
         super().__init__(
-            f"reference simulation ({settings.solver}) of garment {garment!r} on sequence {sequence!r} diverged at "
+            f"reference simulation ({settings.solver}) of garment {garment!r} on sequence {sequence!r} {self.verb} at "
             f"{where}: {reason}. Try more substeps (substeps={2 * settings.substeps}, i.e. a smaller dt), more "
             f"iterations (iterations={2 * settings.iterations}), a higher sequence fps, or a slower motion; "
             f"the other solver (solver={'style3d' if settings.solver == 'vbd' else 'vbd'}) may also cope."
         )
 
-    def __reduce__(self):  # rebuilt from its arguments: parallel sweep workers send it to the launcher pickled
-        return type(self), self._args
+    def __reduce__(self):  # rebuilt from its arguments (and attempts): parallel workers send it pickled
+        return type(self), self._args, {"attempts": getattr(self, "attempts", None)}
+
+
+class GarmentLeftBody(SimulationDiverged):
+    """The garment left the body (fell off, or slid down to the feet); nothing was cached."""
+
+    verb = "lost the garment"
 
 
 @dataclass
@@ -165,6 +184,21 @@ def _pin_targets(start: torch.Tensor, pins: torch.Tensor, idx: torch.Tensor, bod
         return lbs(start[pins], body.weights[idx[pins]].to(start.dtype), transforms.to(start.dtype)).double().numpy()
 
 
+def _left_body(x: np.ndarray, body_points: np.ndarray) -> str | None:
+    """Why the garment (V, 3) has left the body (Vb, 3) by the rule of this module's docstring, or None."""
+    centre = x.mean(0)
+    lo, hi = body_points.min(0), body_points.max(0)
+    outside = float(np.maximum(lo - centre, centre - hi).max())
+    if outside > LEAVE_MARGIN:
+        return (f"the garment fell off: its centroid is {100 * outside:.0f} cm outside the body's bounding box "
+                f"(limit LEAVE_MARGIN={100 * LEAVE_MARGIN:.0f} cm)")  # fmt: skip
+    height = (centre[2] - lo[2]) / (hi[2] - lo[2])
+    if height < FEET_BAND:
+        return (f"the garment slid down to the feet: its centroid is at {100 * height:.0f}% of the body's height "
+                f"(limit FEET_BAND={100 * FEET_BAND:.0f}%)")  # fmt: skip
+    return None
+
+
 def _run(garment, seq, body, material: Material, settings: SimSettings, show_progress: bool):
     t_setup = time.perf_counter()
     S, T = int(settings.settle_frames), seq.n_frames
@@ -218,6 +252,9 @@ def _run(garment, seq, body, material: Material, settings: SimSettings, show_pro
             if ratio.max() > MAX_STRETCH:
                 raise SimulationDiverged(garment.name, seq.name, frame, T,
                                          f"an edge stretched to {ratio.max():.1f}x its rest length", settings)  # fmt: skip
+            left = _left_body(x, verts[k + 1])
+            if left is not None:
+                raise GarmentLeftBody(garment.name, seq.name, frame, T, left, settings)
             x_prev = x
             if frame >= 0:
                 out[frame] = x
@@ -229,6 +266,34 @@ def _run(garment, seq, body, material: Material, settings: SimSettings, show_pro
             bar.close()
     stats = {"max_speed": max_speed, "device": device, "n_substeps": (S + T) * n_sub, **_versions()}
     return out, timings, stats
+
+
+def _run_with_retries(garment, seq, body, material: Material, settings: SimSettings, show_progress: bool):
+    """:func:`_run` at ``settings.substeps``, then after each failure at the next of ``settings.retry_substeps``
+    above it. stats gain ``substeps`` (the count that succeeded) and ``attempts`` (substeps and failure of
+    each try; the successful one has failure None); timings gain ``retries`` (s spent on failed tries) if
+    any. Raises the last failure (its reason lists the earlier ones) when every attempt fails."""
+    ladder = [int(settings.substeps), *(n for n in settings.retry_substeps if n > settings.substeps)]
+    attempts, failed_s, err = [], 0.0, None
+    for n in ladder:
+        t0 = time.perf_counter()
+        try:
+            verts, timings, stats = _run(garment, seq, body, material, settings.with_(substeps=n), show_progress)
+        except SimulationDiverged as e:
+            err = e
+            failed_s += time.perf_counter() - t0
+            attempts.append({"substeps": n, "failure": f"{type(e).__name__} at frame {e.frame}: {e.reason}"})
+            continue
+        attempts.append({"substeps": n, "failure": None})
+        if failed_s:
+            timings = {**timings, "retries": failed_s}
+        return verts, timings, {**stats, "substeps": n, "attempts": attempts}
+    if len(attempts) > 1:
+        earlier = "; ".join(f"substeps={a['substeps']}: {a['failure']}" for a in attempts[:-1])
+        err = type(err)(garment.name, seq.name, err.frame, seq.n_frames, f"{err.reason} (also failed with {earlier})",
+                        settings.with_(substeps=ladder[-1]))  # fmt: skip
+    err.attempts = attempts
+    raise err
 
 
 def simulate_record(
@@ -257,14 +322,14 @@ def simulate_record(
     path = _cache_path(
         garment, seq, cfg, garment.vertices, garment.faces, garment.pins if cfg.pins else None, garment.betas,
         seq.betas, seq.poses, seq.trans, float(seq.fps), body_key(body), material.to_dict(),
-        {**cfg.to_dict(), "device": device_kind}, _versions(),
+        {**cfg.to_dict(), "device": device_kind, "retry_substeps": None}, _versions(),
     )  # fmt: skip
     hit = REFERENCES.load(path, _reader((seq.n_frames, garment.n_vertices, 3)), force) if cache else None
     if hit is not None:
         verts, meta = hit
         return SimulationRecord(torch.from_numpy(verts), meta["timings_s"], cfg, True, time.perf_counter() - t0,
                                 str(path), meta["stats"])  # fmt: skip
-    verts, timings, stats = _run(garment, seq, body, material, cfg, progress)
+    verts, timings, stats = _run_with_retries(garment, seq, body, material, cfg, progress)
     if cache:
         meta = {"timings_s": timings, "stats": stats, "settings": cfg.to_dict(), "garment": garment.name,
                 "sequence": seq.name, "material": material.to_dict()}  # fmt: skip
@@ -305,8 +370,9 @@ def simulate(
         dtype: output dtype (float32 default).
     Raises:
         ValueError: bad settings, or a garment that starts inside the body.
-        SimulationDiverged: NaN, a vertex faster than ``max_speed`` or an edge torn past 4x its rest
-            length; names the garment, frame and what to change.
+        SimulationDiverged: NaN, a vertex faster than ``max_speed``, an edge torn past 4x its rest
+            length, or (:class:`GarmentLeftBody`) the garment left the body, at every substep count
+            tried (``retry_substeps``); names the garment, frame and what to change.
     """
     rec = simulate_record(garment, seq, body, material, solver, cache=cache, progress=progress, substeps=substeps,
                           iterations=iterations, settle_frames=settle_frames, **settings)  # fmt: skip
