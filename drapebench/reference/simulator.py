@@ -159,13 +159,17 @@ def _start_state(garment, seq, body):
     return start, idx
 
 
+class GarmentStartsInside(ValueError):
+    """The garment starts inside the rest body of the sequence's shape; nothing was simulated."""
+
+
 def _check_start(garment, start: torch.Tensor, rest_body: torch.Tensor, body) -> None:
     from drapebench.geometry.sdf import signed_distance
 
     sd = signed_distance(start[None].float(), rest_body[None].float(), body.faces)[0]
     inside = sd < 0
     if inside.float().mean() > MAX_START_INSIDE:
-        raise ValueError(
+        raise GarmentStartsInside(
             f"garment {garment.name!r} starts inside the body: {int(inside.sum())} of {garment.n_vertices} vertices "
             f"({100 * inside.float().mean():.1f}%, deepest {-1e3 * float(sd.min()):.1f} mm) are inside the rest body "
             f"({body.name}, the sequence's betas). The reference simulator accepts at most "
@@ -268,6 +272,24 @@ def _run(garment, seq, body, material: Material, settings: SimSettings, show_pro
     return out, timings, stats
 
 
+def _resolve(garment, seq, body, material: Material, cfg: SimSettings):
+    """The settings with their device resolved, and the cache file of this simulation."""
+    if cfg.device is None:
+        cfg = cfg.with_(device="cuda:0" if torch.cuda.is_available() else "cpu")
+    device_kind = cfg.device.split(":")[0]
+    path = _cache_path(
+        garment, seq, cfg, garment.vertices, garment.faces, garment.pins if cfg.pins else None, garment.betas,
+        seq.betas, seq.poses, seq.trans, float(seq.fps), body_key(body), material.to_dict(),
+        {**cfg.to_dict(), "device": device_kind, "retry_substeps": None}, _versions(),
+    )  # fmt: skip
+    return cfg, path
+
+
+def reference_path(garment, seq, body, material: Material | None = None, solver: str = "vbd", **settings):
+    """The cache file (a Path, which may not exist yet) :func:`simulate_record` reads and writes for these arguments."""
+    return _resolve(garment, seq, body, material or Material(), SimSettings.for_solver(solver, **settings))[1]
+
+
 def _run_with_retries(garment, seq, body, material: Material, settings: SimSettings, show_progress: bool):
     """:func:`_run` at ``settings.substeps``, then after each failure at the next of ``settings.retry_substeps``
     above it. stats gain ``substeps`` (the count that succeeded) and ``attempts`` (substeps and failure of
@@ -316,14 +338,7 @@ def simulate_record(
     if garment.pins.numel() and int(garment.pins.max()) >= garment.n_vertices:
         raise ValueError(f"garment {garment.name!r} pins index vertex {int(garment.pins.max())} of {garment.n_vertices}")
     t0 = time.perf_counter()
-    if cfg.device is None:
-        cfg = cfg.with_(device="cuda:0" if torch.cuda.is_available() else "cpu")
-    device_kind = cfg.device.split(":")[0]
-    path = _cache_path(
-        garment, seq, cfg, garment.vertices, garment.faces, garment.pins if cfg.pins else None, garment.betas,
-        seq.betas, seq.poses, seq.trans, float(seq.fps), body_key(body), material.to_dict(),
-        {**cfg.to_dict(), "device": device_kind, "retry_substeps": None}, _versions(),
-    )  # fmt: skip
+    cfg, path = _resolve(garment, seq, body, material, cfg)
     hit = REFERENCES.load(path, _reader((seq.n_frames, garment.n_vertices, 3)), force) if cache else None
     if hit is not None:
         verts, meta = hit
