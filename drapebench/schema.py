@@ -92,6 +92,29 @@ class ReferenceConf:
     damping: Optional[float] = None
     max_speed: Optional[float] = None
     device: Optional[str] = None  # None: cuda when available, else cpu
+    retry_substeps: Optional[List[int]] = None  # substeps tried in turn after a divergence; []: no retry
+
+
+@dataclass
+class DataConf:
+    """Reference training data of supervised methods (drapebench.data.reference_set.ReferenceSetSpec fields)."""
+
+    name: str = "cpu"  # preset name (conf/data/<name>.yaml)
+    motions: List[str] = field(default_factory=lambda: ["random"])  # named motions and/or random
+    per_motion: int = 1
+    n_frames: int = 45
+    seed: int = 40000
+    fps: float = 30.0
+    transition: int = 15
+    beta_sigma: float = 1.0
+    beta_clip: float = 2.0
+    n_shape_betas: int = 4
+    params: Dict[str, Any] = field(default_factory=dict)  # per-motion parameters
+    solver: str = "vbd"
+    settings: Dict[str, Any] = field(default_factory=dict)  # overrides of conf/reference/<solver>.yaml
+    body: Optional[str] = None  # collider body; None: the run's body
+    n_jobs: int = 1
+    allow_held_out: bool = False  # kick and stress are test motions
 
 
 @dataclass
@@ -119,6 +142,7 @@ class Config:
     material: MaterialConf = field(default_factory=MaterialConf)
     train: TrainConf = field(default_factory=TrainConf)
     reference: ReferenceConf = field(default_factory=ReferenceConf)
+    data: DataConf = field(default_factory=DataConf)
     eval: EvalConf = field(default_factory=EvalConf)
     viz: VizMode = VizMode.rerun
     force: bool = False  # rebuild cached data, checkpoints and references

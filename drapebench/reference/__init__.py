@@ -7,6 +7,14 @@ simulation actually runs (not for cache hits).
 """
 
 from drapebench.reference.settings import SOLVERS, SimSettings
-from drapebench.reference.simulator import SimulationDiverged, SimulationRecord, simulate, simulate_record
+from drapebench.reference.simulator import (
+    GarmentLeftBody,
+    SimulationDiverged,
+    SimulationRecord,
+    reference_path,
+    simulate,
+    simulate_record,
+)
 
-__all__ = ["SOLVERS", "SimSettings", "SimulationDiverged", "SimulationRecord", "simulate", "simulate_record"]
+__all__ = ["SOLVERS", "GarmentLeftBody", "SimSettings", "SimulationDiverged", "SimulationRecord", "reference_path", "simulate",
+           "simulate_record"]

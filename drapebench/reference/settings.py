@@ -17,7 +17,9 @@ class SimSettings:
 
     solver "vbd" | "style3d"; substeps per frame; iterations per substep; settle_frames before the
     sequence; pins (bool); self_contact (bool); contact_ke N/m; contact_kd N s/m; contact_gap m;
-    damping s (Rayleigh beta); max_speed m/s (blow-up threshold); device None | "cpu" | "cuda[:i]".
+    damping s (Rayleigh beta); max_speed m/s (blow-up threshold); device None | "cpu" | "cuda[:i]";
+    retry_substeps: substep counts tried in turn after a divergence (those not above ``substeps`` are
+    skipped; empty: no retry).
     """
 
     solver: str = "vbd"
@@ -32,8 +34,12 @@ class SimSettings:
     damping: float = 0.001
     max_speed: float = 50.0
     device: str | None = None
+    retry_substeps: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "retry_substeps", tuple(int(n) for n in self.retry_substeps or ()))
+        if any(n < 1 for n in self.retry_substeps):
+            raise ValueError(f"reference retry_substeps must all be >= 1, got {list(self.retry_substeps)}")
         if self.solver not in SOLVERS:
             raise ValueError(
                 f"unknown reference solver {self.solver!r}; available: {', '.join(SOLVERS)} "

@@ -16,6 +16,14 @@ needs them), its BVH refitted and its bounding box updated (Newton culls contact
 had at model finalisation otherwise). ``garment.pins`` (waistband / neck band) are kinematic: they
 follow linear blend skinning of their start positions with their nearest rest-body vertex's
 weights; ``pins=False`` leaves them free.
+
+Failures (nothing is cached): :class:`SimulationDiverged` on NaN, a vertex faster than ``max_speed``
+or an edge stretched past ``MAX_STRETCH``; :class:`GarmentLeftBody` when the garment's centroid (mean
+vertex) leaves the body's axis-aligned bounding box grown by ``LEAVE_MARGIN`` on every side (it fell
+off) or drops into the lowest ``FEET_BAND`` of the body's height (it slid down to the feet), checked
+after every frame. After a failure the whole simulation is run again with each of
+``settings.retry_substeps`` in turn (a smaller step); every attempt is recorded in the record's
+``stats["attempts"]`` and the cache key stays the requested settings.
 """
 
 from __future__ import annotations
@@ -39,13 +47,18 @@ from drapebench.reference.settings import SimSettings
 REFERENCES = Cache("reference", 1)  # bump when the simulation or the stored format changes
 MAX_START_INSIDE = 0.01  # a garment with more of its vertices inside the rest body is rejected
 MAX_STRETCH = 4.0  # an edge longer than this x its rest length counts as a blow-up
+LEAVE_MARGIN = 0.10  # m: a garment centroid this far outside the body's bounding box has fallen off
+FEET_BAND = 0.15  # a garment centroid in this lowest fraction of the body's height has slid down to the feet
 
 
 class SimulationDiverged(DrapeFailed):
     """The reference simulation blew up (NaN, runaway speed or torn elements); nothing was cached.
 
-    Attributes: garment, sequence (names), frame (sequence frame, negative while settling), reason.
+    Attributes: garment, sequence (names), frame (sequence frame, negative while settling), reason;
+    attempts (substeps and failure of each try, see :func:`simulate_record`) once retries are done.
     """
+
+    verb = "diverged"
 
     def __init__(self, garment: str, sequence: str, frame: int, n_frames: int, reason: str, settings: SimSettings):
         self.garment, self.sequence, self.frame, self.reason = garment, sequence, frame, reason
@@ -53,14 +66,20 @@ class SimulationDiverged(DrapeFailed):
         where = f"settling frame {frame + settings.settle_frames} of {settings.settle_frames}" if frame < 0 else \
             f"frame {frame} of {n_frames}"  # fmt: skip
         super().__init__(
-            f"reference simulation ({settings.solver}) of garment {garment!r} on sequence {sequence!r} diverged at "
+            f"reference simulation ({settings.solver}) of garment {garment!r} on sequence {sequence!r} {self.verb} at "
             f"{where}: {reason}. Try more substeps (substeps={2 * settings.substeps}, i.e. a smaller dt), more "
             f"iterations (iterations={2 * settings.iterations}), a higher sequence fps, or a slower motion; "
             f"the other solver (solver={'style3d' if settings.solver == 'vbd' else 'vbd'}) may also cope."
         )
 
-    def __reduce__(self):  # rebuilt from its arguments: parallel sweep workers send it to the launcher pickled
-        return type(self), self._args
+    def __reduce__(self):  # rebuilt from its arguments (and attempts): parallel workers send it pickled
+        return type(self), self._args, {"attempts": getattr(self, "attempts", None)}
+
+
+class GarmentLeftBody(SimulationDiverged):
+    """The garment left the body (fell off, or slid down to the feet); nothing was cached."""
+
+    verb = "lost the garment"
 
 
 @dataclass
@@ -140,13 +159,17 @@ def _start_state(garment, seq, body):
     return start, idx
 
 
+class GarmentStartsInside(ValueError):
+    """The garment starts inside the rest body of the sequence's shape; nothing was simulated."""
+
+
 def _check_start(garment, start: torch.Tensor, rest_body: torch.Tensor, body) -> None:
     from drapebench.geometry.sdf import signed_distance
 
     sd = signed_distance(start[None].float(), rest_body[None].float(), body.faces)[0]
     inside = sd < 0
     if inside.float().mean() > MAX_START_INSIDE:
-        raise ValueError(
+        raise GarmentStartsInside(
             f"garment {garment.name!r} starts inside the body: {int(inside.sum())} of {garment.n_vertices} vertices "
             f"({100 * inside.float().mean():.1f}%, deepest {-1e3 * float(sd.min()):.1f} mm) are inside the rest body "
             f"({body.name}, the sequence's betas). The reference simulator accepts at most "
@@ -163,6 +186,21 @@ def _pin_targets(start: torch.Tensor, pins: torch.Tensor, idx: torch.Tensor, bod
         return np.zeros((transforms.shape[0], 0, 3))
     with torch.no_grad():
         return lbs(start[pins], body.weights[idx[pins]].to(start.dtype), transforms.to(start.dtype)).double().numpy()
+
+
+def _left_body(x: np.ndarray, body_points: np.ndarray) -> str | None:
+    """Why the garment (V, 3) has left the body (Vb, 3) by the rule of this module's docstring, or None."""
+    centre = x.mean(0)
+    lo, hi = body_points.min(0), body_points.max(0)
+    outside = float(np.maximum(lo - centre, centre - hi).max())
+    if outside > LEAVE_MARGIN:
+        return (f"the garment fell off: its centroid is {100 * outside:.0f} cm outside the body's bounding box "
+                f"(limit LEAVE_MARGIN={100 * LEAVE_MARGIN:.0f} cm)")  # fmt: skip
+    height = (centre[2] - lo[2]) / (hi[2] - lo[2])
+    if height < FEET_BAND:
+        return (f"the garment slid down to the feet: its centroid is at {100 * height:.0f}% of the body's height "
+                f"(limit FEET_BAND={100 * FEET_BAND:.0f}%)")  # fmt: skip
+    return None
 
 
 def _run(garment, seq, body, material: Material, settings: SimSettings, show_progress: bool):
@@ -218,6 +256,9 @@ def _run(garment, seq, body, material: Material, settings: SimSettings, show_pro
             if ratio.max() > MAX_STRETCH:
                 raise SimulationDiverged(garment.name, seq.name, frame, T,
                                          f"an edge stretched to {ratio.max():.1f}x its rest length", settings)  # fmt: skip
+            left = _left_body(x, verts[k + 1])
+            if left is not None:
+                raise GarmentLeftBody(garment.name, seq.name, frame, T, left, settings)
             x_prev = x
             if frame >= 0:
                 out[frame] = x
@@ -229,6 +270,52 @@ def _run(garment, seq, body, material: Material, settings: SimSettings, show_pro
             bar.close()
     stats = {"max_speed": max_speed, "device": device, "n_substeps": (S + T) * n_sub, **_versions()}
     return out, timings, stats
+
+
+def _resolve(garment, seq, body, material: Material, cfg: SimSettings):
+    """The settings with their device resolved, and the cache file of this simulation."""
+    if cfg.device is None:
+        cfg = cfg.with_(device="cuda:0" if torch.cuda.is_available() else "cpu")
+    device_kind = cfg.device.split(":")[0]
+    path = _cache_path(
+        garment, seq, cfg, garment.vertices, garment.faces, garment.pins if cfg.pins else None, garment.betas,
+        seq.betas, seq.poses, seq.trans, float(seq.fps), body_key(body), material.to_dict(),
+        {**cfg.to_dict(), "device": device_kind, "retry_substeps": None}, _versions(),
+    )  # fmt: skip
+    return cfg, path
+
+
+def reference_path(garment, seq, body, material: Material | None = None, solver: str = "vbd", **settings):
+    """The cache file (a Path, which may not exist yet) :func:`simulate_record` reads and writes for these arguments."""
+    return _resolve(garment, seq, body, material or Material(), SimSettings.for_solver(solver, **settings))[1]
+
+
+def _run_with_retries(garment, seq, body, material: Material, settings: SimSettings, show_progress: bool):
+    """:func:`_run` at ``settings.substeps``, then after each failure at the next of ``settings.retry_substeps``
+    above it. stats gain ``substeps`` (the count that succeeded) and ``attempts`` (substeps and failure of
+    each try; the successful one has failure None); timings gain ``retries`` (s spent on failed tries) if
+    any. Raises the last failure (its reason lists the earlier ones) when every attempt fails."""
+    ladder = [int(settings.substeps), *(n for n in settings.retry_substeps if n > settings.substeps)]
+    attempts, failed_s, err = [], 0.0, None
+    for n in ladder:
+        t0 = time.perf_counter()
+        try:
+            verts, timings, stats = _run(garment, seq, body, material, settings.with_(substeps=n), show_progress)
+        except SimulationDiverged as e:
+            err = e
+            failed_s += time.perf_counter() - t0
+            attempts.append({"substeps": n, "failure": f"{type(e).__name__} at frame {e.frame}: {e.reason}"})
+            continue
+        attempts.append({"substeps": n, "failure": None})
+        if failed_s:
+            timings = {**timings, "retries": failed_s}
+        return verts, timings, {**stats, "substeps": n, "attempts": attempts}
+    if len(attempts) > 1:
+        earlier = "; ".join(f"substeps={a['substeps']}: {a['failure']}" for a in attempts[:-1])
+        err = type(err)(garment.name, seq.name, err.frame, seq.n_frames, f"{err.reason} (also failed with {earlier})",
+                        settings.with_(substeps=ladder[-1]))  # fmt: skip
+    err.attempts = attempts
+    raise err
 
 
 def simulate_record(
@@ -251,20 +338,13 @@ def simulate_record(
     if garment.pins.numel() and int(garment.pins.max()) >= garment.n_vertices:
         raise ValueError(f"garment {garment.name!r} pins index vertex {int(garment.pins.max())} of {garment.n_vertices}")
     t0 = time.perf_counter()
-    if cfg.device is None:
-        cfg = cfg.with_(device="cuda:0" if torch.cuda.is_available() else "cpu")
-    device_kind = cfg.device.split(":")[0]
-    path = _cache_path(
-        garment, seq, cfg, garment.vertices, garment.faces, garment.pins if cfg.pins else None, garment.betas,
-        seq.betas, seq.poses, seq.trans, float(seq.fps), body_key(body), material.to_dict(),
-        {**cfg.to_dict(), "device": device_kind}, _versions(),
-    )  # fmt: skip
+    cfg, path = _resolve(garment, seq, body, material, cfg)
     hit = REFERENCES.load(path, _reader((seq.n_frames, garment.n_vertices, 3)), force) if cache else None
     if hit is not None:
         verts, meta = hit
         return SimulationRecord(torch.from_numpy(verts), meta["timings_s"], cfg, True, time.perf_counter() - t0,
                                 str(path), meta["stats"])  # fmt: skip
-    verts, timings, stats = _run(garment, seq, body, material, cfg, progress)
+    verts, timings, stats = _run_with_retries(garment, seq, body, material, cfg, progress)
     if cache:
         meta = {"timings_s": timings, "stats": stats, "settings": cfg.to_dict(), "garment": garment.name,
                 "sequence": seq.name, "material": material.to_dict()}  # fmt: skip
@@ -305,8 +385,9 @@ def simulate(
         dtype: output dtype (float32 default).
     Raises:
         ValueError: bad settings, or a garment that starts inside the body.
-        SimulationDiverged: NaN, a vertex faster than ``max_speed`` or an edge torn past 4x its rest
-            length; names the garment, frame and what to change.
+        SimulationDiverged: NaN, a vertex faster than ``max_speed``, an edge torn past 4x its rest
+            length, or (:class:`GarmentLeftBody`) the garment left the body, at every substep count
+            tried (``retry_substeps``); names the garment, frame and what to change.
     """
     rec = simulate_record(garment, seq, body, material, solver, cache=cache, progress=progress, substeps=substeps,
                           iterations=iterations, settle_frames=settle_frames, **settings)  # fmt: skip

@@ -1,0 +1,250 @@
+"""Reference training data: physics-based drapes of one garment over many motions and body shapes.
+
+``build_reference_set(garment, body, material, spec)`` plans the body sequences of a
+:class:`ReferenceSetSpec` (:func:`drapebench.body.dataset.sequence_plan`: motions x ``per_motion``,
+random body shapes, deterministic in ``seed``), simulates each with
+:func:`drapebench.reference.simulate_record` in parallel worker processes (joblib), and returns a
+:class:`ReferenceSet`. Each drape is one entry of the reference cache, so a rerun or a run resumed
+after an interruption simulates only the sequences not done yet. A simulation that fails
+(:class:`~drapebench.reference.SimulationDiverged`, the garment leaving the body, a garment starting
+inside a body shape) is never cached: it is recorded in the set's manifest (``data/cache/reference_sets``,
+garment, sequence, cause) and skipped, also by later runs, until ``force``.
+
+Presets are ``conf/data/<name>.yaml`` (``data=cpu`` small, the default; ``data=paper`` large, for a GPU);
+by hand: ``python -m drapebench.data.reference_set --garment tshirt --body anny --data cpu --jobs 2``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+from dataclasses import asdict, dataclass, field, fields
+from pathlib import Path
+
+import torch
+import yaml
+
+from drapebench.body.dataset import HELD_OUT_MOTIONS, DatasetSpec, spec_sequences
+from drapebench.body.sequence import DEFAULT_TRANSITION
+from drapebench.cache import PROJECT_ROOT, Cache, cache_dir, content_hash
+from drapebench.data.references import References, read_drape
+from drapebench.progress import progress as progress_bar
+
+CONF_DIR = PROJECT_ROOT / "conf" / "data"
+MANIFESTS = Cache("reference_sets", 1)  # per (garment, planned drapes): which sequences failed and why
+
+
+@dataclass(frozen=True)
+class ReferenceSetSpec:
+    """What a reference set holds: ``per_motion`` sequences of each of ``motions`` (named motions and
+    "random"), ``n_frames`` frames each plus ``transition``, at ``fps``; body shapes ``betas ~ N(0,
+    beta_sigma^2)`` clipped to +-``beta_clip`` on the first ``n_shape_betas`` components; sequence seeds
+    and shapes drawn from ``seed``; ``params`` per motion (e.g. ``{"random": {"amplitude": 0.8}}``).
+    Simulated by ``solver`` with ``settings`` overriding ``conf/reference/<solver>.yaml``, against the
+    collider ``body`` (a body name; None: the body the garment is draped on); ``n_jobs`` worker
+    processes. The held-out test motions (kick, stress) are refused unless ``allow_held_out``."""
+
+    name: str = "custom"
+    motions: tuple[str, ...] = ("random",)
+    per_motion: int = 1
+    n_frames: int = 45
+    seed: int = 40000
+    fps: float = 30.0
+    transition: int = DEFAULT_TRANSITION
+    beta_sigma: float = 1.0
+    beta_clip: float = 2.0
+    n_shape_betas: int = 4
+    params: dict = field(default_factory=dict)
+    solver: str = "vbd"
+    settings: dict = field(default_factory=dict)
+    body: str | None = None
+    n_jobs: int = 1
+    allow_held_out: bool = False
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "motions", tuple(self.motions))
+        held = [m for m in self.motions if m in HELD_OUT_MOTIONS]
+        if held and not self.allow_held_out:
+            raise ValueError(f"reference set {self.name!r} asks for held-out test motion(s) {held}: training data must not "
+                             "see them; drop them from motions or set allow_held_out=true")  # fmt: skip
+        if int(self.per_motion) < 1 or int(self.n_frames) < 1 or int(self.n_jobs) < 1:
+            raise ValueError(f"reference set {self.name!r} needs per_motion, n_frames and n_jobs >= 1, got "
+                             f"{self.per_motion}, {self.n_frames}, {self.n_jobs}")  # fmt: skip
+
+    @classmethod
+    def from_config(cls, cfg) -> "ReferenceSetSpec":
+        """From a mapping (a Hydra ``data`` node or a ``conf/data`` file); unknown keys name the valid ones."""
+        cfg = dict(cfg)
+        valid = {f.name for f in fields(cls)}
+        unknown = set(cfg) - valid
+        if unknown:
+            raise ValueError(f"unknown reference set key(s) {sorted(unknown)}; valid: {sorted(valid)}")
+        return cls(**cfg)
+
+    @classmethod
+    def preset(cls, name: str) -> "ReferenceSetSpec":
+        """``conf/data/<name>.yaml`` (cpu, paper); KeyError names the choices."""
+        path = CONF_DIR / f"{name}.yaml"
+        if not path.exists():
+            raise KeyError(f"unknown reference set preset {name!r}; presets: {', '.join(sorted(p.stem for p in CONF_DIR.glob('*.yaml')))}")
+        return cls.from_config(yaml.safe_load(path.read_text()))
+
+    def dataset_spec(self) -> DatasetSpec:
+        """The body sequences to simulate, as a :class:`DatasetSpec` (split "train")."""
+        return DatasetSpec(self.motions, int(self.per_motion), int(self.n_frames), "train", seed=int(self.seed), fps=float(self.fps),
+                           transition=int(self.transition), beta_sigma=float(self.beta_sigma), beta_clip=float(self.beta_clip),
+                           n_shape_betas=int(self.n_shape_betas), params=dict(self.params))  # fmt: skip
+
+
+@dataclass
+class ReferenceSet:
+    """The successful drapes of a reference set: ``set[i]`` is (BodySequence, vertices (T, V, 3) float32 m),
+    read from the reference cache on each access; ``sequences`` those sequences; ``failed`` one dict per
+    failed simulation (garment, sequence, error, cause); ``planned`` every planned sequence;
+    ``sim_s`` the original simulation time of the successful drapes; ``wall_s`` this build's wall time."""
+
+    garment: str
+    spec: ReferenceSetSpec
+    planned: list
+    paths: dict[str, str]
+    failed: list[dict]
+    sim_s: float = 0.0
+    wall_s: float = 0.0
+
+    @property
+    def sequences(self) -> list:
+        """The sequences with a drape, in plan order."""
+        return [seq for seq in self.planned if seq.name in self.paths]
+
+    def __len__(self) -> int:
+        return len(self.paths)
+
+    def __getitem__(self, i: int):
+        seq = self.sequences[i]
+        return seq, read_drape(self.paths[seq.name]).float()
+
+    def __iter__(self):
+        return (self[i] for i in range(len(self)))
+
+    def references(self) -> References:
+        """The drapes as :class:`drapebench.data.References` (for :class:`drapebench.data.TrainData`)."""
+        return References.from_files({(self.garment, name): path for name, path in self.paths.items()})
+
+    def summary(self) -> str:
+        """One line: sequences ok / failed, frames, simulation and wall time."""
+        frames = sum(seq.n_frames for seq in self.sequences)
+        causes = "; ".join(f"{f['sequence']}: {f['error']}" for f in self.failed)
+        return (f"reference set {self.spec.name} ({self.garment}, {self.spec.solver}): {len(self)} ok / {len(self.failed)} failed "
+                f"of {len(self.planned)} sequences, {frames} frames, simulation {self.sim_s / 60:.1f} min, "
+                f"this build {self.wall_s / 60:.1f} min" + (f" (failed: {causes})" if causes else ""))  # fmt: skip
+
+
+def _simulate_one(garment, seq, body, material, spec: ReferenceSetSpec, force: bool, threads: int | None) -> dict:
+    """Simulate (or load) one drape in a worker; a dict with the cache path and original sim time, or the failure."""
+    from drapebench.reference import SimulationDiverged, simulate_record
+    from drapebench.reference.simulator import GarmentStartsInside
+
+    if threads is not None:
+        torch.set_num_threads(threads)
+    try:
+        rec = simulate_record(garment, seq, body, material, spec.solver, force=force, progress=False, **spec.settings)
+    except (SimulationDiverged, GarmentStartsInside) as err:
+        return {"garment": garment.name, "sequence": seq.name, "error": type(err).__name__, "cause": str(err),
+                "attempts": getattr(err, "attempts", None)}  # fmt: skip
+    return {"sequence": seq.name, "path": rec.path, "sim_s": rec.sim_s, "from_cache": rec.from_cache,
+            "attempts": rec.stats.get("attempts")}  # fmt: skip
+
+
+def build_reference_set(garment, body, material, spec: ReferenceSetSpec, n_jobs: int | None = None, progress: bool = True,
+                        force: bool = False) -> ReferenceSet:  # fmt: skip
+    """Simulate ``garment`` (made on ``body``) over every sequence of ``spec`` (see the module docstring).
+
+    Args:
+        garment: :class:`drapebench.garments.Garment`; body: its :class:`drapebench.body.BodyModel` (the
+            collider unless ``spec.body`` names another); material: :class:`drapebench.physics.Material`.
+        n_jobs: worker processes (None: ``spec.n_jobs``); 1 runs in this process.
+        progress: a bar over sequences (on stderr; quiet per :func:`drapebench.progress.progress_enabled`).
+        force: simulate every sequence again, failed ones included.
+    Returns:
+        :class:`ReferenceSet` of the successful drapes; failures are in ``.failed``.
+    """
+    from joblib import Parallel, delayed
+
+    from drapebench.body import load_body
+    from drapebench.reference import reference_path
+
+    t0 = time.perf_counter()
+    collider = load_body(spec.body) if spec.body else body
+    seqs = spec_sequences(spec.dataset_spec())
+    paths = [str(reference_path(garment, seq, collider, material, spec.solver, **spec.settings)) for seq in seqs]
+    manifest_path = MANIFESTS.path(garment.name, paths, prefix=f"{garment.name}_{spec.name}", suffix=".json")
+    manifest = None if force else MANIFESTS.load(manifest_path, lambda p: json.loads(Path(p).read_text()))
+    failed = {f["sequence"]: f for f in (manifest or {}).get("failed", [])}
+    todo = [seq for seq in seqs if seq.name not in failed]
+    n_jobs = int(n_jobs or spec.n_jobs)
+    threads = max(1, (os.cpu_count() or 1) // n_jobs) if n_jobs > 1 else None
+    os.environ.setdefault("WARP_CACHE_PATH", str(cache_dir("warp")))  # workers share the compiled warp kernels
+    done: dict[str, dict] = {}
+
+    def save() -> None:
+        doc = {"garment": garment.name, "spec": asdict(spec), "failed": list(failed.values()),
+               "done": [done[s.name] for s in seqs if s.name in done]}  # fmt: skip
+        MANIFESTS.store(manifest_path, lambda tmp: Path(tmp).write_text(json.dumps(doc, indent=2)))
+
+    jobs = (delayed(_simulate_one)(garment, seq, collider, material, spec, force, threads) for seq in todo)
+    bar = progress_bar(total=len(todo), desc=f"references {garment.name} {spec.name}", unit="seq") if progress else None
+    try:
+        for result in Parallel(n_jobs=n_jobs, return_as="generator_unordered")(jobs):
+            if "path" in result:
+                done[result["sequence"]] = result
+            else:
+                failed[result["sequence"]] = result
+                save()
+            if bar is not None:
+                bar.update(1)
+                bar.set_postfix(ok=len(done), failed=len(failed))
+    finally:
+        if bar is not None:
+            bar.close()
+    save()
+    return ReferenceSet(garment.name, spec, seqs, {name: r["path"] for name, r in done.items()},
+                        [failed[s.name] for s in seqs if s.name in failed], sum(r["sim_s"] for r in done.values()),
+                        time.perf_counter() - t0)  # fmt: skip
+
+
+def load_reference_set(cfg_data, garment, body, material, n_jobs: int | None = None, progress: bool = True,
+                       force: bool = False) -> ReferenceSet:  # fmt: skip
+    """:func:`build_reference_set` from a Hydra ``cfg.data`` node (or any mapping of :class:`ReferenceSetSpec` fields)."""
+    from omegaconf import DictConfig, OmegaConf
+
+    if isinstance(cfg_data, DictConfig):
+        cfg_data = OmegaConf.to_container(cfg_data, resolve=True)
+    return build_reference_set(garment, body, material, ReferenceSetSpec.from_config(cfg_data), n_jobs, progress, force)
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description="Build the reference drapes of a garment (training data of supervised methods).")
+    parser.add_argument("--garment", default="tshirt", help="garment kind (conf/garment), made on --body with default parameters")
+    parser.add_argument("--body", default="anny", help="body the garment is made for and draped on (conf/body)")
+    parser.add_argument("--data", default="cpu", help="preset in conf/data (cpu, paper)")
+    parser.add_argument("--material", default="cotton", help="material preset (conf/material)")
+    parser.add_argument("--jobs", type=int, default=None, help="worker processes (default: the preset's n_jobs)")
+    parser.add_argument("--force", action="store_true", help="simulate every sequence again, failed ones included")
+    args = parser.parse_args(argv)
+    from drapebench.body import load_body
+    from drapebench.garments import make_garment
+    from drapebench.physics import Material
+
+    body = load_body(args.body)
+    garment = make_garment(args.garment, body)
+    refs = build_reference_set(garment, body, Material.preset(args.material), ReferenceSetSpec.preset(args.data), args.jobs,
+                               force=args.force)  # fmt: skip
+    print(refs.summary())
+    for f in refs.failed:
+        print(f"  failed {f['sequence']}: {f['cause']}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,100 @@
+"""Reference training sets: the plan, resuming an interrupted build, failures recorded and never cached (the Newton
+run replaced by a counting fake), and one short real simulation through the whole path."""
+
+import numpy as np
+import pytest
+import torch
+
+import drapebench.reference.simulator as sim
+from drapebench.body.dataset import HELD_OUT_MOTIONS, spec_sequences
+from drapebench.data.reference_set import ReferenceSetSpec, build_reference_set, load_reference_set
+from drapebench.garments import make_garment
+from drapebench.physics import Material
+from drapebench.reference import SimulationDiverged, reference_path
+
+SPEC = ReferenceSetSpec(name="test", motions=("random", "walk"), per_motion=2, n_frames=3, transition=2, seed=7,
+                        settings={"settle_frames": 0, "retry_substeps": []})  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def garment(body_lowres):
+    return make_garment("skirt", body_lowres, resolution=0.03)
+
+
+def test_the_plan_is_deterministic_in_the_seed_and_keeps_the_test_motions_out():
+    a, b = spec_sequences(SPEC.dataset_spec()), spec_sequences(SPEC.dataset_spec())
+    assert [s.motion for s in a] == ["random", "random", "walk", "walk"]
+    assert all(torch.equal(x.poses, y.poses) and torch.equal(x.betas, y.betas) for x, y in zip(a, b))
+    assert len({tuple(s.betas[:4].tolist()) for s in a}) == 4 and all(s.betas[4:].abs().sum() == 0 for s in a)
+    other = spec_sequences(ReferenceSetSpec(**{**SPEC.__dict__, "seed": 8}).dataset_spec())
+    assert not torch.equal(other[0].betas, a[0].betas) and not torch.equal(other[0].poses, a[0].poses)
+    with pytest.raises(ValueError, match=r"held-out test motion\(s\) \['kick'\].*allow_held_out"):
+        ReferenceSetSpec(motions=("walk", "kick"))
+    assert ReferenceSetSpec(motions=("walk", "kick"), allow_held_out=True).motions == ("walk", "kick")
+    for name in ("cpu", "paper"):
+        spec = ReferenceSetSpec.preset(name)
+        assert spec.name == name and "random" in spec.motions and not set(spec.motions) & set(HELD_OUT_MOTIONS)
+
+
+@pytest.fixture
+def fake_run(monkeypatch, tmp_path):
+    """Newton replaced by a drape that moves each vertex by the sequence's first shape coefficient x 1 mm per
+    frame; it fails on train_random_001 and is interrupted (once) on train_walk_000. Returns the calls."""
+    monkeypatch.setenv("DRAPEBENCH_DATA", str(tmp_path))
+    calls = []
+
+    def run(garment, seq, body, material, settings, show_progress):
+        calls.append(seq.name)
+        if seq.name == "train_random_001":
+            raise SimulationDiverged(garment.name, seq.name, 1, seq.n_frames, "test blow-up", settings)
+        if seq.name == "train_walk_000" and calls.count(seq.name) == 1:
+            raise KeyboardInterrupt
+        x = garment.vertices.numpy()[None] + 1e-3 * float(seq.betas[0]) * np.arange(seq.n_frames)[:, None, None]
+        return x.astype(np.float32), {"setup": 1.0, "settle": 0.0, "sequence": 2.0}, {"max_speed": 0.1}
+
+    monkeypatch.setattr(sim, "_run", run)
+    return calls
+
+
+def test_an_interrupted_build_resumes_and_a_failure_is_recorded_not_cached(garment, body_lowres, fake_run):
+    with pytest.raises(KeyboardInterrupt):
+        build_reference_set(garment, body_lowres, Material(), SPEC, progress=False)
+    assert fake_run == ["train_random_000", "train_random_001", "train_walk_000"]
+    refs = build_reference_set(garment, body_lowres, Material(), SPEC, progress=False)
+    assert fake_run[3:] == ["train_walk_000", "train_walk_001"]  # neither the finished nor the failed one again
+    assert len(refs) == 3 and [s.name for s in refs.sequences] == ["train_random_000", "train_walk_000", "train_walk_001"]
+    assert [(f["garment"], f["sequence"], f["error"]) for f in refs.failed] == [("skirt", "train_random_001", "SimulationDiverged")]
+    assert "test blow-up" in refs.failed[0]["cause"]
+    failed_seq = [s for s in refs.planned if s.name == "train_random_001"][0]
+    failed_path = reference_path(garment, failed_seq, body_lowres, Material(), "vbd", **SPEC.settings)
+    assert not failed_path.exists()
+    for seq, x in refs:
+        expected = garment.vertices[None] + 1e-3 * float(seq.betas[0]) * torch.arange(seq.n_frames)[:, None, None]
+        assert x.dtype == torch.float32 and torch.allclose(x, expected.float(), atol=1e-6)
+        assert refs.references().get(garment, seq).shape == x.shape
+    assert refs.sim_s == pytest.approx(9.0)
+    assert refs.summary().startswith("reference set test (skirt, vbd): 3 ok / 1 failed of 4 sequences, 15 frames")
+    again = load_reference_set({**SPEC.__dict__, "motions": list(SPEC.motions)}, garment, body_lowres, Material(), progress=False)
+    assert len(fake_run) == 5 and len(again) == 3 and len(again.failed) == 1
+    build_reference_set(garment, body_lowres, Material(), SPEC, progress=False, force=True)
+    assert len(fake_run) == 9 and not failed_path.exists()
+
+
+def test_unknown_keys_are_named():
+    with pytest.raises(ValueError, match=r"unknown reference set key\(s\) \['frames'\]"):
+        ReferenceSetSpec.from_config({"frames": 3})
+    with pytest.raises(KeyError, match="presets: cpu, paper"):
+        ReferenceSetSpec.preset("huge")
+
+
+def test_a_short_real_simulation_through_newton(garment, body_lowres, monkeypatch, tmp_path):
+    """A few frames of vbd on the low-res body: the Newton path and its failure checks run on every submission."""
+    monkeypatch.setenv("DRAPEBENCH_DATA", str(tmp_path))
+    spec = ReferenceSetSpec(name="real", motions=("walk",), n_frames=2, transition=1, beta_sigma=0.3,
+                            settings={"settle_frames": 1, "substeps": 2, "iterations": 3, "retry_substeps": []})  # fmt: skip
+    refs = build_reference_set(garment, body_lowres, Material(), spec, progress=False)
+    assert len(refs) == 1 and not refs.failed
+    seq, x = refs[0]
+    assert x.shape == (3, garment.n_vertices, 3) and torch.isfinite(x).all()
+    step = (x[1:] - x[:-1]).norm(dim=-1)
+    assert float(step.max()) > 0 and float(step.max()) < 0.1  # it moved, and by less than 10 cm a frame

@@ -1,0 +1,128 @@
+"""The reference's failure checks (NaN, speed, stretch, garment leaving the body) and its retry ladder, fed bad
+frames by a fake Newton scene inside the real simulation loop (fast)."""
+
+import pickle
+
+import numpy as np
+import pytest
+import torch
+
+import drapebench.reference.scene as scene_module
+from drapebench.body import make_sequence
+from drapebench.garments import make_garment
+from drapebench.physics import Material
+from drapebench.reference import GarmentLeftBody, SimulationDiverged, simulate_record
+from drapebench.reference.simulator import FEET_BAND, LEAVE_MARGIN, _left_body
+
+N_FRAMES, TRANSITION, SETTLE = 4, 2, 2
+
+
+@pytest.fixture(scope="module")
+def scene(body_lowres):
+    return make_garment("skirt", body_lowres, resolution=0.03), make_sequence("walk", N_FRAMES, transition=TRANSITION, seed=3)
+
+
+def fake_scene(monkeypatch, fault, bad_below=None):
+    """Replace Newton's scene by one whose garment stays where it started until ``fault(x, frames_done)`` changes
+    it; ``bad_below``: the fault only happens with fewer substeps than this (a smaller step cures it)."""
+    steps = []
+
+    class FakeScene:
+        def __init__(self, rest, faces, start, body_points, body_faces, pins, material, settings, device):
+            self.x, self.substeps, self.frames = start.astype(np.float32), settings.substeps, 0
+            steps.append(settings.substeps)
+
+        def begin_frame(self):
+            self.frames += 1
+
+        def set_body(self, points, velocities):
+            pass
+
+        def set_pinned(self, q, qd):
+            pass
+
+        def step(self, dt):
+            assert dt == pytest.approx(1.0 / (30.0 * self.substeps))
+
+        def positions(self):
+            if bad_below is None or self.substeps < bad_below:
+                return fault(self.x.copy(), self.frames)
+            return self.x
+
+    monkeypatch.setattr(scene_module, "ClothScene", FakeScene)
+    return steps
+
+
+def nan_at_3(x, n):
+    x[0] = np.nan if n >= 3 else x[0]
+    return x
+
+
+def fast_at_3(x, n):
+    return x + (n >= 3) * np.float32(10.0)  # 10 m in one frame at 30 fps: 300 m/s
+
+
+def torn_at_3(x, n):
+    x[0, 2] += 0.15 if n >= 3 else 0.0  # one vertex 15 cm off: its edges (about 3 cm) stretch past 4x, at 4.5 m/s
+    return x
+
+
+def falls(x, n):
+    return x - np.float32([0.0, 0.0, 0.3 * n])  # 30 cm lower each frame: 9 m/s, below max_speed
+
+
+@pytest.mark.parametrize("fault, error, match", [
+    (nan_at_3, SimulationDiverged, r"became NaN/Inf"),
+    (fast_at_3, SimulationDiverged, r"moved at .* m/s"),
+    (torn_at_3, SimulationDiverged, r"an edge stretched to \d"),
+    (falls, GarmentLeftBody, r"lost the garment at .*(fell off|slid down to the feet)"),
+])  # fmt: skip
+def test_a_bad_frame_fails_the_run_and_caches_nothing(scene, body_lowres, monkeypatch, tmp_path, fault, error, match):
+    monkeypatch.setenv("DRAPEBENCH_DATA", str(tmp_path))
+    g, seq = scene
+    steps = fake_scene(monkeypatch, fault)
+    with pytest.raises(error, match=match) as err:
+        simulate_record(g, seq, body_lowres, Material(), settle_frames=SETTLE, retry_substeps=[], progress=False)
+    assert steps == [10] and err.value.attempts == [{"substeps": 10, "failure": err.value.attempts[0]["failure"]}]
+    assert not list((tmp_path / "cache" / "reference").glob("*"))
+
+
+def test_a_divergence_is_retried_with_a_smaller_step_and_recorded(scene, body_lowres, monkeypatch, tmp_path):
+    monkeypatch.setenv("DRAPEBENCH_DATA", str(tmp_path))
+    g, seq = scene
+    steps = fake_scene(monkeypatch, torn_at_3, bad_below=30)
+    rec = simulate_record(g, seq, body_lowres, Material(), settle_frames=SETTLE, retry_substeps=[5, 20, 40], progress=False)
+    assert steps == [10, 20, 40]  # 5 is not a smaller step than the requested 10: skipped
+    assert rec.stats["substeps"] == 40 and rec.settings.substeps == 10
+    attempts = rec.stats["attempts"]
+    assert [a["substeps"] for a in attempts] == [10, 20, 40] and attempts[-1]["failure"] is None
+    assert all(a["failure"].startswith("SimulationDiverged at frame 0: an edge stretched") for a in attempts[:2])
+    assert rec.timings_s["retries"] > 0 and torch.isfinite(rec.vertices).all()
+    again = simulate_record(g, seq, body_lowres, Material(), settle_frames=SETTLE, retry_substeps=[5, 20, 40], progress=False)
+    assert again.from_cache and steps == [10, 20, 40] and again.stats["attempts"] == attempts
+    assert len(list((tmp_path / "cache" / "reference").glob("*.npz"))) == 1
+
+
+def test_when_every_attempt_fails_the_error_lists_them_and_survives_pickling(scene, body_lowres, monkeypatch, tmp_path):
+    monkeypatch.setenv("DRAPEBENCH_DATA", str(tmp_path))
+    g, seq = scene
+    steps = fake_scene(monkeypatch, falls)
+    with pytest.raises(GarmentLeftBody, match=r"also failed with substeps=10: GarmentLeftBody.*substeps=20") as err:
+        simulate_record(g, seq, body_lowres, Material(), settle_frames=SETTLE, progress=False)  # vbd.yaml: [20, 40]
+    assert steps == [10, 20, 40] and [a["substeps"] for a in err.value.attempts] == [10, 20, 40]
+    back = pickle.loads(pickle.dumps(err.value))
+    assert type(back) is GarmentLeftBody and back.attempts == err.value.attempts and str(back) == str(err.value)
+    assert not list((tmp_path / "cache" / "reference").glob("*"))
+
+
+def test_the_leave_body_rule(scene, body_lowres):
+    g, _ = scene
+    body = body_lowres.v_template.double().numpy()
+    x = g.vertices.double().numpy()
+    assert _left_body(x, body) is None
+    width = body[:, 0].max() - body[:, 0].min()
+    side = x + np.array([width + LEAVE_MARGIN + 0.05, 0.0, 0.0])
+    assert "fell off" in _left_body(side, body)
+    assert _left_body(x + np.array([width / 2 + LEAVE_MARGIN - 0.05, 0.0, 0.0]), body) is None  # within the margin
+    feet = x - np.array([0.0, 0.0, x[:, 2].mean() - body[:, 2].min() - 0.5 * FEET_BAND * np.ptp(body[:, 2])])
+    assert "slid down to the feet" in _left_body(feet, body)
