@@ -9,6 +9,8 @@ child; optional ``trans`` (T, 3) root translation in metres (default zero), ``be
 
 from __future__ import annotations
 
+import zipfile
+import zlib
 from pathlib import Path
 
 import h5py
@@ -27,20 +29,18 @@ def read_motion_file(path: str | Path) -> dict:
     if not path.is_file():
         raise FileNotFoundError(f"motion file {path} does not exist (motion.path must name an .npz or .h5 file)")
     suffix = path.suffix.lower()
+    if suffix not in (".npz", ".h5", ".hdf5"):
+        raise ValueError(f"{path}: unsupported motion file type {path.suffix!r}; use .npz or .h5")
     try:
         if suffix == ".npz":
             with np.load(path, allow_pickle=False) as z:
                 d = {k: z[k] for k in z.files}
-        elif suffix in (".h5", ".hdf5"):
+        else:
             with h5py.File(path, "r") as f:
                 d = {k: f[k][()] for k in f if isinstance(f[k], h5py.Dataset)}
                 if "fps" in f.attrs and "fps" not in d:
                     d["fps"] = f.attrs["fps"]
-        else:
-            raise ValueError(f"{path}: unsupported motion file type {path.suffix!r}; use .npz or .h5")
-    except (OSError, ValueError, EOFError) as err:
-        if "unsupported motion file" in str(err):
-            raise
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as err:
         raise ValueError(f"{path} cannot be read as {suffix[1:]} ({type(err).__name__}: {err}); write it with numpy.savez or h5py") from err
     if "poses" not in d:
         raise ValueError(f"{path} has no 'poses' array (found {sorted(d)}); a motion file needs poses (T, J, 3) axis-angle "

@@ -137,10 +137,9 @@ def placement(V: np.ndarray, body_V: np.ndarray, report: GarmentReport) -> None:
     does not touch the body)."""
     size, height = float(np.ptp(V, 0).max()), float(np.ptp(body_V, 0).max())
     report.stats["size_m"] = round(size, 3)
-    if not 0.05 * height <= size <= 1.5 * height:
-        ratio = size / height
-        unit = next((f" (looks like {u}: scale by {f:g})" for u, f, r in (("centimetres", 0.01, 100), ("millimetres", 0.001, 1000))
-                     if 0.3 * r <= ratio <= 3 * r), "")  # fmt: skip
+    plausible = lambda s: 0.05 * height <= s <= 1.5 * height  # noqa: E731
+    if not plausible(size):
+        unit = next((f" (looks like {u}: scale by {f:g})" for u, f in (("centimetres", 0.01), ("millimetres", 0.001)) if plausible(size * f)), "")
         report.fail("units", f"the garment is {size:.3g} m across and the body {height:.2f} m tall{unit}; give the garment in metres")
         return
     lo, hi = np.maximum(V.min(0), body_V.min(0)), np.minimum(V.max(0), body_V.max(0))
