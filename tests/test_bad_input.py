@@ -82,6 +82,8 @@ def test_a_user_garment_gets_pins_on_its_top_band_or_the_ones_given(skirt_obj, b
         garment_from_config({"kind": "skirt", "path": str(path), "params": {}}, body_lowres)
     with pytest.raises(ValueError, match="garment=obj reads path and pins"):
         garment_from_config({"kind": "obj", "path": str(path), "params": {"ease": 0.01}}, body_lowres)
+    with pytest.raises(ValueError, match=r"garment=obj needs the file: garment.path="):
+        garment_from_config(dict(_compose(["garment=obj"]).garment), body_lowres)
 
 
 def _write_obj(path, V, F):
@@ -221,6 +223,7 @@ def test_cuda_without_a_cuda_torch_names_the_fix(monkeypatch):
         ({"n_frames": 0, "transition": 0}, "fewer than 2 frames"),
         ({"fps": 0.0}, "fps must be positive"),
         ({"path": "x.npz"}, "motion.path is read only by motion=file"),
+        ({"name": "file", "path": None}, "motion=file needs the file: motion.path="),
         ({"betas": [0.0] * 11}, "11 betas given"),
     ],
 )

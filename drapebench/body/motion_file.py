@@ -124,6 +124,8 @@ def sequence_from_config(m: dict, body) -> BodySequence:
     if m["name"] == "file":
         if m.get("params"):
             raise ValueError(f"motion.params {sorted(m['params'])} are parameters of the procedural motions; motion=file reads path")
+        if m.get("path") in (None, "???"):
+            raise ValueError("motion=file needs the file: motion.path=/path/to/poses.npz (or .h5)")
         return load_motion(m["path"], body, fps=m.get("fps"), betas=m.get("betas"), n_frames=m.get("n_frames"),
                            transition=int(m["transition"]))  # fmt: skip
     if m.get("path") is not None:

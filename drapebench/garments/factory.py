@@ -230,6 +230,8 @@ def garment_from_config(g: dict, body) -> Garment:
     if g["kind"] == "obj":
         if g.get("params"):
             raise ValueError(f"garment.params {sorted(g['params'])} are parameters of the built kinds; garment=obj reads path and pins")
+        if g.get("path") in (None, "???"):
+            raise ValueError("garment=obj needs the file: garment.path=/path/to/garment.obj (or .ply)")
         return load_garment(g["path"], body, kind="obj", pins=g.get("pins"))
     for key in ("path", "pins"):
         if g.get(key) is not None:
