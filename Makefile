@@ -9,11 +9,23 @@ export RERUN_ANALYTICS ?= 0
 
 .PHONY: venv run test test-slow bench clean-cache
 
+# `make run` installs what run.py uses (the package + the Newton/warp reference simulator, about 2.9 GB);
+# `make test` adds the test tools and Anny (.[dev], about 0.13 GB more). pip shows its progress; set
+# PIP_NO_CACHE_DIR=1 to keep pip from also caching the downloads (about 1.3 GB) under ~/.cache/pip.
 $(BIN)/.installed: pyproject.toml
+	@echo "== [1/3] creating $(VENV) (first use only; about 2.9 GB and 1-2 minutes in all)"
 	$(PY) -m venv $(VENV)
 	$(BIN)/pip install -q --upgrade pip
-	$(BIN)/pip install -q "$(TORCH_SPEC)"
-	$(BIN)/pip install -q -e ".[dev]"
+	@echo "== [2/3] installing $(TORCH_SPEC) (about 0.75 GB installed for the CPU build)"
+	$(BIN)/pip install --progress-bar on "$(TORCH_SPEC)"
+	@echo "== [3/3] installing drapebench and its dependencies (rerun, warp/newton, pymeshlab, ...)"
+	$(BIN)/pip install --progress-bar on -e ".[sim]"
+	@du -sh $(VENV) | sed 's/^/== .venv is /'
+	touch $@
+
+$(BIN)/.installed-dev: $(BIN)/.installed
+	@echo "== installing the test tools (pytest, anny, submitit launcher)"
+	$(BIN)/pip install --progress-bar on -e ".[dev]"
 	touch $@
 
 venv: $(BIN)/.installed
@@ -21,10 +33,10 @@ venv: $(BIN)/.installed
 run: venv
 	$(BIN)/python run.py $(ARGS)
 
-test: venv
+test: $(BIN)/.installed-dev
 	$(BIN)/python -m pytest $(ARGS)
 
-test-slow: venv
+test-slow: $(BIN)/.installed-dev
 	$(BIN)/python -m pytest -m slow $(ARGS)
 
 bench: venv

@@ -24,6 +24,7 @@ from drapebench.body.dataset import dataset_hash
 from drapebench.cache import PROJECT_ROOT, Cache, atomic_write, body_key, content_hash, forcing, write_json
 from drapebench.errors import DrapeFailed
 from drapebench.results import environment, git_commit, write_prediction
+from drapebench.schema import check_keys
 from drapebench.train.checkpoint import write_losses
 
 log = logging.getLogger("drapebench")
@@ -68,6 +69,29 @@ def _method_class(cfg: DictConfig):
 
 CHECKPOINTS = Cache("checkpoints", 1)
 EVALUATIONS = Cache("evaluations", 1)
+
+
+def warn_untrained_shape(betas, train_cfg: dict, method_params: dict, method: str) -> list[int]:
+    """Warn (and return the indices) when test ``betas`` (S,) leave the range ``method`` was trained on:
+    ``method.params.train.beta_range`` (per component, U(-r, r)) if it sets one, else the training dataset's
+    (:func:`drapebench.body.dataset.beta_bound`)."""
+    from drapebench.body.dataset import beta_bound
+
+    betas = np.asarray(betas, dtype=np.float64).reshape(-1)
+    own = (method_params.get("train") or {}).get("beta_range")
+    bound = np.zeros(len(betas))
+    if own is not None:
+        bound[: len(own)] = np.asarray(own, dtype=np.float64)[: len(betas)]
+    elif train_cfg.get("dataset"):
+        b = beta_bound(train_cfg["dataset"])
+        bound[: len(b)] = b[: len(betas)]
+    else:
+        return []
+    out = np.flatnonzero(np.abs(betas) > bound + 1e-6)
+    if len(out):
+        log.warning("test betas %s are outside the range %s was trained on (|beta_k| <= %s): its drape is an extrapolation there",
+                    ", ".join(f"b{k}={betas[k]:g}" for k in out), method, np.round(bound, 3).tolist())  # fmt: skip
+    return out.tolist()
 
 
 def drape_ms_per_frame(timings_ms: dict, drape_s: float, n_frames: int) -> float:
@@ -157,7 +181,9 @@ def run(cfg: DictConfig, out_dir: str | Path | None = None) -> dict:
     """Run one experiment described by ``cfg``; writes the run's files into ``out_dir`` (default: the
     Hydra run directory) and returns the flat metrics record. When the method fails on the scene
     (:class:`drapebench.errors.DrapeFailed`) and ``cfg.on_failure`` is "record", writes ``failed.json``
-    instead of ``metrics.json`` and returns that record (``status`` "failed")."""
+    instead of ``metrics.json`` and returns that record (``status`` "failed"). Raises ValueError for a
+    config key nothing reads (:func:`drapebench.schema.check_keys`)."""
+    check_keys(cfg)
     if out_dir is None:
         from hydra.core.hydra_config import HydraConfig
 
@@ -196,10 +222,11 @@ def _reference_train_data(cfg: DictConfig, garment, body, material, seq):
 
 
 def _run(cfg: DictConfig, out: Path) -> dict:
-    from drapebench.body import load_body, make_sequence
+    from drapebench.body import load_body
     from drapebench.body.dataset import build_dataset
+    from drapebench.body.motion_file import sequence_from_config
     from drapebench.data import H5Sequences, TrainData
-    from drapebench.garments import make_garment
+    from drapebench.garments import garment_from_config
     from drapebench.physics import Material
 
     t_start = time.perf_counter()
@@ -214,10 +241,9 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     t = time.perf_counter()
     body = load_body(cfg.body.name, device=cfg.device)
     material = Material.from_config(OmegaConf.to_container(cfg.material, resolve=True))
-    garment = make_garment(cfg.garment.kind, body, seed=int(cfg.garment.seed), **cfg.garment.params)
+    garment = garment_from_config(OmegaConf.to_container(cfg.garment, resolve=True), body)
     m = cfg.motion
-    seq = make_sequence(m.name, int(m.n_frames), float(m.fps), int(m.seed), betas=None if m.betas is None else list(m.betas),
-                        transition=int(m.transition), split="test", **m.params)  # fmt: skip
+    seq = sequence_from_config(OmegaConf.to_container(m, resolve=True), body)
     stages["scene_s"] = time.perf_counter() - t
     log.info("scene: %s (%d vertices) on %s, %s (%d frames) in %.1f s", garment.kind, garment.n_vertices, body.name, seq.name,
              seq.n_frames, stages["scene_s"])  # fmt: skip
@@ -240,6 +266,8 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     t = time.perf_counter()
     train_s, ckpt = _checkpoint(method, cfg, garment, data, train_cfg, log_dir=out)
     stages["fit_s"] = time.perf_counter() - t
+    if ckpt is not None:
+        warn_untrained_shape(seq.betas, train_cfg, OmegaConf.to_container(cfg.method.params, resolve=True), cfg.method.name)
 
     t = time.perf_counter()
     result = method.drape(garment, seq)
@@ -249,7 +277,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     stages["eval_s"] = time.perf_counter() - t
     record = {
         "method": cfg.method.name, "garment": cfg.garment.kind, "motion": m.name, "body": cfg.body.name,
-        "shape": shape_label(m.betas), "n_vertices": garment.n_vertices, "n_frames": seq.n_frames, **summary,
+        "shape": shape_label(seq.betas), "n_vertices": garment.n_vertices, "n_frames": seq.n_frames, **summary,
         "ms_per_frame": drape_ms_per_frame(result.timings_ms, drape_s, seq.n_frames), "train_s": train_s,
         **{f"ms_{k}": v / seq.n_frames for k, v in result.timings_ms.items()},
         "seed": int(cfg.seed), "experiment": cfg.experiment_name, "checkpoint": ckpt, "commit": git_commit(),

@@ -1,8 +1,10 @@
-"""Structured-config schema of ``conf/``: typos and wrong types fail when Hydra composes the config."""
+"""Structured-config schema of ``conf/``: typos and wrong types fail when Hydra composes the config, and
+keys added with ``+`` that nothing reads fail in :func:`check_keys` before a run starts."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import difflib
+from dataclasses import dataclass, field, fields, is_dataclass
 from enum import Enum
 from typing import Any, Dict, List, Optional
 
@@ -23,20 +25,23 @@ class BodyConf:
 
 @dataclass
 class GarmentConf:
-    kind: str = "tshirt"
+    kind: str = "tshirt"  # a parametric kind, or obj: a user's file (conf/garment/obj.yaml)
     seed: int = 0
     params: Dict[str, Any] = field(default_factory=dict)
+    path: Optional[str] = None  # garment=obj: the .obj/.ply file (metres, on the rest-pose body)
+    pins: Optional[List[int]] = None  # garment=obj: vertex indices held to the body; None: found automatically
 
 
 @dataclass
 class MotionConf:
-    name: str = "walk"
-    n_frames: int = 90
-    fps: float = 30.0
+    name: str = "walk"  # a procedural motion, or file: a user's pose file (conf/motion/file.yaml)
+    n_frames: Optional[int] = 90  # motion=file: None = every frame of the file
+    fps: Optional[float] = 30.0  # motion=file: None = the file's fps
     transition: int = 15
     seed: int = 1000
-    betas: Optional[List[float]] = None  # test body shape; None = mean
+    betas: Optional[List[float]] = None  # test body shape; None = mean (motion=file: the file's betas)
     params: Dict[str, Any] = field(default_factory=dict)
+    path: Optional[str] = None  # motion=file: .npz/.h5 with poses (T, J, 3) axis-angle [, trans, betas, fps]
 
 
 @dataclass
@@ -151,6 +156,24 @@ class Config:
     threads: Optional[int] = None  # torch threads per job; None: the job's share of the CPU cores
     device: str = "cpu"
     experiment_name: str = "default"
+
+
+def check_keys(cfg, schema: type = None, prefix: str = "") -> None:
+    """Raise ValueError naming the first key of ``cfg`` (a DictConfig or mapping) that ``schema`` (default
+    :class:`Config`) does not have, with the valid keys: Hydra's ``+key=value`` adds keys the schema lacks,
+    which would otherwise be ignored. ``params`` mappings are checked by the code that reads them."""
+    schema = schema or Config
+    known = {f.name: f for f in fields(schema)}
+    for key in cfg:
+        name = f"{prefix}{key}"
+        if key not in known:
+            close = difflib.get_close_matches(str(key), list(known), n=1)
+            hint = f" (did you mean {prefix}{close[0]}?)" if close else ""
+            raise ValueError(f"unknown config key {name!r}{hint}: nothing reads it; valid keys{' of ' + prefix[:-1] if prefix else ''}: "
+                             f"{', '.join(sorted(known))}")  # fmt: skip
+        sub = known[key].default_factory if is_dataclass(getattr(known[key], "default_factory", None)) else None
+        if sub is not None and cfg[key] is not None:
+            check_keys(cfg[key], sub, f"{name}.")
 
 
 def register() -> None:

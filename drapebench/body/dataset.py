@@ -71,6 +71,15 @@ DATASETS: dict[str, DatasetSpec] = {
 }
 
 
+def beta_bound(name_or_spec) -> np.ndarray:
+    """(n_betas,) the largest |beta_k| in a dataset's sequences (``beta_clip`` on the first
+    ``n_shape_betas`` components, 0 after): the body shapes a model trained on it has seen."""
+    spec = _resolve(name_or_spec)[1]
+    bound = np.zeros(spec.n_betas)
+    bound[: spec.n_shape_betas] = spec.beta_clip
+    return bound
+
+
 def sequence_plan(spec: DatasetSpec) -> list[tuple[str, int, int, np.ndarray]]:
     """(motion, index, seed, betas (n_betas,) float32) per sequence, deterministic in ``spec.seed``."""
     rng = np.random.default_rng(spec.seed)

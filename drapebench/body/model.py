@@ -7,6 +7,7 @@ parent -> child as in SMPL; ``pose = 0`` is the rest pose (the Anny A-pose for b
 
 from __future__ import annotations
 
+import logging
 import pickle
 import zipfile
 import zlib
@@ -117,6 +118,25 @@ class BodyModel(torch.nn.Module):
             return self.joint_names.index(name)
         except ValueError:
             raise KeyError(f"unknown joint {name!r}; valid joints: {', '.join(self.joint_names)}") from None
+
+    def full_betas(self, betas=None, note: bool = False) -> torch.Tensor:
+        """The one rule for shape coefficients: (..., S') betas (None = mean) -> (..., S) float on the body's
+        dtype/device, S = :attr:`n_betas`. Fewer than S are zero-padded (logged when ``note``); more, or NaN/Inf,
+        raise ValueError naming the count and the fix."""
+        if betas is None:
+            return torch.zeros(self.n_betas, dtype=self.dtype, device=self.device)
+        betas = torch.as_tensor(betas, dtype=self.dtype, device=self.device)
+        if betas.dim() == 0 or betas.shape[-1] > self.n_betas:
+            got = 1 if betas.dim() == 0 else betas.shape[-1]
+            raise ValueError(f"{got} betas given; body {self.name} has {self.n_betas} shape coefficients: give at most "
+                             f"{self.n_betas} (fewer are zero-padded), e.g. motion.betas=[1.0,-0.5]")  # fmt: skip
+        _check_finite(betas, "betas")
+        n = betas.shape[-1]
+        if n < self.n_betas:
+            if note and n:
+                logging.getLogger("drapebench").info("%d betas given; zero-padded to body %s's %d", n, self.name, self.n_betas)
+            betas = torch.nn.functional.pad(betas, (0, self.n_betas - n))
+        return betas
 
     # ------------------------------------------------------------------ model
     def shaped(self, betas: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
@@ -337,6 +357,19 @@ def _read_model_file(path: Path) -> dict:
     return d
 
 
+def torch_device(device) -> torch.device:
+    """``device`` as a torch device; ValueError naming the fix when it asks for CUDA and torch has none."""
+    try:
+        dev = torch.device(device)
+    except RuntimeError as err:
+        raise ValueError(f"device {device!r} is not a torch device ({err}); use device=cpu or device=cuda") from err
+    if dev.type == "cuda" and not torch.cuda.is_available():
+        why = "this torch is a CPU-only build" if torch.version.cuda is None else "no CUDA GPU is visible"
+        raise ValueError(f"device={device} requested but {why} (torch {torch.__version__}); use device=cpu, or install a "
+                         "CUDA build of torch (make venv TORCH_SPEC=... ; see README)")  # fmt: skip
+    return dev
+
+
 def load_body(name_or_path: str | Path = "anny", dtype: torch.dtype = torch.float32, device="cpu", up_axis: str | None = None) -> BodyModel:
     """Load a shipped body (``"anny"``, ``"anny_lowres"``) or an SMPL-format ``.npz``/``.pkl`` file.
 
@@ -349,6 +382,7 @@ def load_body(name_or_path: str | Path = "anny", dtype: torch.dtype = torch.floa
     Returns:
         :class:`BodyModel`.
     """
+    device = torch_device(device)
     name = str(name_or_path)
     if name in SHIPPED_BODIES:
         path = BODY_DIR / f"{name}.npz"

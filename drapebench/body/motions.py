@@ -293,9 +293,9 @@ def generate(motion: str, n_frames: int, fps: float, seed: int, transition: int 
     """
     _check_motion(motion)
     if n_frames < 1 or transition < 0:
-        raise ValueError(f"n_frames must be >= 1 and transition >= 0, got {n_frames}, {transition}")
+        raise ValueError(f"n_frames must be >= 1 and transition >= 0, got {n_frames}, {transition} (motion.n_frames, motion.transition)")
     if not fps > 0:
-        raise ValueError(f"fps must be positive, got {fps}")
+        raise ValueError(f"fps must be positive, got {fps}: give frames per second, e.g. motion.fps=30")
     builder, defaults = _SPECS[motion]
     unknown = set(params) - set(defaults)
     if unknown:

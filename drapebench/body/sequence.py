@@ -78,7 +78,7 @@ class BodySequence:
             self._check_joints(body)
             with torch.no_grad():
                 self._cache[key] = body.forward(
-                    self.betas[None, : body.n_betas].to(body.device, body.dtype),
+                    body.full_betas(self.betas)[None],
                     self.poses.to(body.device, body.dtype),
                     self.trans.to(body.device, body.dtype),
                 )
@@ -116,7 +116,7 @@ class BodySequence:
             self._check_joints(body)
             with torch.no_grad():
                 self._cache[key] = body.forward(
-                    self.betas[None, : body.n_betas].to(body.device, body.dtype), self.poses.to(body.device, body.dtype),
+                    body.full_betas(self.betas)[None], self.poses.to(body.device, body.dtype),
                     self.trans.to(body.device, body.dtype), skin=False,
                 ).transforms  # fmt: skip
         return self._cache[key]

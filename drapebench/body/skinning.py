@@ -20,8 +20,7 @@ def nearest_body_vertices(points: torch.Tensor, body, betas: torch.Tensor | None
     if points.dim() != 2 or points.shape[-1] != 3:
         raise ValueError(f"points must be (N, 3) rest-pose positions, got {tuple(points.shape)}")
     with torch.no_grad():
-        b = None if betas is None else torch.as_tensor(betas, dtype=body.dtype)[None, : body.n_betas]
-        rest = body.shaped(b)[0][0]
+        rest = body.shaped(body.full_betas(betas)[None])[0][0]
     return nearest_indices(points[None], rest[None].to(points.dtype))[0]
 
 
@@ -32,13 +31,9 @@ def nearest_weights(index: torch.Tensor, body) -> torch.Tensor:
 
 def transfer_shape(points: torch.Tensor, index: torch.Tensor, body, betas_from, betas_to) -> torch.Tensor:
     """Rest-pose points (N, 3) moved from body shape ``betas_from`` to ``betas_to`` ((S',) each, zero-padded
-    to the same length) by the body's shape blend shape at their bound vertices ``index`` (N,)."""
-    b_from, b_to = (torch.as_tensor(b, dtype=points.dtype).reshape(-1)[: body.n_betas] for b in (betas_from, betas_to))
-    n = max(len(b_from), len(b_to))
-    dbeta = torch.zeros(n, dtype=points.dtype, device=points.device)
-    dbeta[: len(b_to)] += b_to.to(points.device)
-    dbeta[: len(b_from)] -= b_from.to(points.device)
-    dirs = body.shapedirs[index][..., :n].to(points.dtype)  # (N, 3, n)
+    by :meth:`BodyModel.full_betas`) by the body's shape blend shape at their bound vertices ``index`` (N,)."""
+    dbeta = (body.full_betas(betas_to) - body.full_betas(betas_from)).reshape(-1).to(points.device, points.dtype)
+    dirs = body.shapedirs[index].to(points.dtype)  # (N, 3, S)
     return points + torch.einsum("vcs,s->vc", dirs, dbeta)
 
 

@@ -24,7 +24,7 @@ from scipy.spatial import cKDTree
 
 from drapebench.cache import Cache, body_key
 from drapebench.garments.fields import SDF_BAND, closed_field, loft_field, marching_cubes, signed_distance_grid
-from drapebench.garments.garment import Garment
+from drapebench.garments.garment import Garment, load_garment
 from drapebench.garments.mesh_ops import cut_by_field, isotropic_remesh, keep_component_near
 from drapebench.garments.validate import validate_garment
 from drapebench.geometry.topology import get_topology
@@ -204,7 +204,7 @@ def make_garment(kind: str, body, betas=None, seed: int = 0, name: str | None = 
     Raises ValueError with the validation report if the construction fails its checks.
     """
     p = garment_params(kind, seed, **params)
-    betas_t = torch.zeros(body.n_betas) if betas is None else torch.as_tensor(betas, dtype=torch.float32).reshape(-1)
+    betas_t = body.full_betas(betas).float().cpu()
     path = GARMENTS.path(kind, p, betas_t, body_key(body), prefix=kind, suffix=".pkl")
 
     def build() -> dict:
@@ -221,3 +221,20 @@ def make_garment(kind: str, body, betas=None, seed: int = 0, name: str | None = 
         pins=torch.as_tensor(rec["pins"], dtype=torch.long), topology=get_topology(rec["V"], rec["F"]),
         params={**p, "seed": seed, **{f"stat_{k}": v for k, v in rec["stats"].items()}}, betas=betas_t, body_name=body.name,
     )  # fmt: skip
+
+
+def garment_from_config(g: dict, body) -> Garment:
+    """The garment a config's ``garment`` node (a dict: kind, seed, params, path, pins) describes: kind ``obj``
+    loads the user's file ``path`` (:func:`load_garment`; ``pins`` given or found), any other kind is built
+    (:func:`make_garment`). Raises ValueError naming a key the chosen kind does not read."""
+    if g["kind"] == "obj":
+        if g.get("params"):
+            raise ValueError(f"garment.params {sorted(g['params'])} are parameters of the built kinds; garment=obj reads path and pins")
+        if g.get("path") in (None, "???"):
+            raise ValueError("garment=obj needs the file: garment.path=/path/to/garment.obj (or .ply)")
+        return load_garment(g["path"], body, kind="obj", pins=g.get("pins"))
+    for key in ("path", "pins"):
+        if g.get(key) is not None:
+            raise ValueError(f"garment.{key} is read only by garment=obj (a user's file), not by garment={g['kind']}; "
+                             f"use python run.py garment=obj garment.path=/path/to/garment.obj")  # fmt: skip
+    return make_garment(g["kind"], body, seed=int(g.get("seed", 0)), **g.get("params", {}))

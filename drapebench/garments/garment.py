@@ -51,7 +51,11 @@ def read_obj(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Vertices and triangles of an OBJ exactly as written (polygons fan-triangulated; unlike trimesh,
     unreferenced vertices are kept so validation can report them)."""
     verts, faces = [], []
-    for n, line in enumerate(Path(path).read_text().splitlines(), 1):
+    try:
+        text = Path(path).read_text()
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path} is not a text OBJ file ({exc}); export the garment as .obj or .ply") from exc
+    for n, line in enumerate(text.splitlines(), 1):
         parts = line.split()
         if not parts:
             continue
@@ -67,38 +71,60 @@ def read_obj(path: Path) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(verts, dtype=np.float64).reshape(-1, 3), np.asarray(faces, dtype=np.int64).reshape(-1, 3)
 
 
-def load_garment(path: str | Path, body, betas=None, kind: str = "custom", pins=None, name: str | None = None) -> Garment:
-    """Load a user's OBJ/PLY garment placed on the canonical body (rest pose, ``betas``) and validate it.
+# What a user does about each failed check of their garment (check names of drapebench.garments.validate).
+USER_FIXES = {
+    "units": "the garment must be in metres, placed on the body in its rest pose: scale or move it in a mesh editor",
+    "inside_body": "the garment must start outside the body in its rest pose (the body at the given betas, pose 0): "
+    "move those vertices outward (e.g. an inflate/offset of a few mm), or give the betas it was made on",
+    "too_close": "keep every vertex at least 2 mm outside the body: offset the garment outward a little",
+    "non_manifold_edges": "each edge may border at most two faces: repair the mesh (e.g. Blender: Select All by Trait > Non Manifold)",
+    "degenerate_faces": "remove zero-area faces (e.g. Blender: Mesh > Clean Up > Degenerate Dissolve)",
+    "duplicate_vertices": "merge coincident vertices (e.g. Blender: Mesh > Clean Up > Merge by Distance)",
+    "unreferenced_vertices": "remove the loose vertices (e.g. Blender: Mesh > Clean Up > Delete Loose)",
+    "orientation": "flip the face winding so normals point away from the body (e.g. Blender: Mesh > Normals > Flip)",
+    "closed": "a garment needs openings (boundary loops): cut the neck, arm or waist openings",
+    "self_intersection": "the garment crosses itself: separate the intersecting layers",
+}
 
-    Raises ValueError listing every failed check (inside-body vertices, non-manifold edges,
-    degenerate faces, duplicate/unreferenced vertices, flipped orientation, ...).
+
+def load_garment(path: str | Path, body, betas=None, kind: str = "custom", pins=None, name: str | None = None) -> Garment:
+    """Load a user's OBJ/PLY garment (metres, Z up) placed on the canonical body (rest pose, ``betas``), and
+    validate it. ``pins`` (P,) vertex indices held to the body; None finds them (:func:`drapebench.garments.pins.find_pins`).
+
+    Raises ValueError listing every failed check with its fix (not a mesh, wrong units, inside the body,
+    non-manifold edges, degenerate faces, duplicate/unreferenced vertices, flipped orientation, ...).
     """
     import trimesh
 
+    from drapebench.garments.pins import check_pins, find_pins
     from drapebench.garments.validate import validate_garment
 
     path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"garment file {path} does not exist")
+    if not path.is_file():
+        raise FileNotFoundError(f"garment file {path} does not exist (garment.path must name an .obj or .ply file)")
     if path.suffix.lower() == ".obj":
         V, F = read_obj(path)
     else:
         try:
             mesh = trimesh.load(path, process=False, force="mesh")
         except Exception as exc:  # trimesh raises many types for unreadable files
-            raise ValueError(f"{path}: cannot read a triangle mesh ({exc})") from exc
+            raise ValueError(f"{path}: cannot read a triangle mesh ({exc}); export the garment as .obj or .ply") from exc
         V, F = np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int64)
-    betas_t = torch.zeros(body.n_betas) if betas is None else torch.as_tensor(betas, dtype=torch.float32)
+    if len(V) < 3 or len(F) == 0:
+        raise ValueError(f"{path} is not a mesh: {len(V)} vertices and {len(F)} faces; a garment file needs 'v' and 'f' lines (OBJ) or faces (PLY)")
+    betas_t = body.full_betas(betas, note=True)
     with torch.no_grad():
         body_v = body.shaped(betas_t[None])[0][0].double().numpy()
     report = validate_garment(V, F, body_v, body.faces.numpy())
     # a user's mesh is judged on structure and placement, not on our factory's triangle targets
     report.failures.pop("triangle_quality", None)
     if not report.ok:
-        raise ValueError(f"{path} is not a valid garment:\n{report}")
-    pins_t = torch.as_tensor(np.asarray(pins if pins is not None else [], dtype=np.int64))
+        fixes = "\n".join(f"  fix {k}: {USER_FIXES[k]}" for k in report.failures if k in USER_FIXES)
+        raise ValueError(f"{path} is not a valid garment:\n{report}\n{fixes}".rstrip())
+    name = name or path.stem
+    pins_t = check_pins(pins, len(V), name) if pins is not None else find_pins(torch.as_tensor(V), torch.as_tensor(body_v), name)
     return Garment(
-        name=name or path.stem, kind=kind, vertices=torch.as_tensor(V, dtype=torch.float32),
+        name=name, kind=kind, vertices=torch.as_tensor(V, dtype=torch.float32),
         faces=torch.as_tensor(F), pins=pins_t, topology=get_topology(V, F), params={"source": str(path)},
-        betas=betas_t, body_name=body.name,
+        betas=betas_t.float().cpu(), body_name=body.name,
     )  # fmt: skip

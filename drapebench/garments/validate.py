@@ -131,6 +131,23 @@ def body_clearance(V: np.ndarray, F: np.ndarray, body_V: np.ndarray, body_F: np.
         report.fail("orientation", f"only {outward:.1%} of face normals point away from the body; flip the winding")
 
 
+def placement(V: np.ndarray, body_V: np.ndarray, report: GarmentReport) -> None:
+    """Units and placement: the garment's extent must be between 5 % and 150 % of the body's height and its
+    bounding box must overlap the body's (a garment in centimetres is 100x too large, one modelled elsewhere
+    does not touch the body)."""
+    size, height = float(np.ptp(V, 0).max()), float(np.ptp(body_V, 0).max())
+    report.stats["size_m"] = round(size, 3)
+    plausible = lambda s: 0.05 * height <= s <= 1.5 * height  # noqa: E731
+    if not plausible(size):
+        unit = next((f" (looks like {u}: scale by {f:g})" for u, f in (("centimetres", 0.01), ("millimetres", 0.001)) if plausible(size * f)), "")
+        report.fail("units", f"the garment is {size:.3g} m across and the body {height:.2f} m tall{unit}; give the garment in metres")
+        return
+    lo, hi = np.maximum(V.min(0), body_V.min(0)), np.minimum(V.max(0), body_V.max(0))
+    if np.any(lo > hi):
+        report.fail("units", f"the garment's bounding box {V.min(0).round(2).tolist()}..{V.max(0).round(2).tolist()} m does not "
+                    f"overlap the body's {body_V.min(0).round(2).tolist()}..{body_V.max(0).round(2).tolist()} m (Z up, facing -Y)")  # fmt: skip
+
+
 def self_intersections(V: np.ndarray, F: np.ndarray, report: GarmentReport) -> None:
     """Faces intersecting other faces of the garment (pymeshlab)."""
     import pymeshlab
@@ -171,6 +188,9 @@ def validate_garment(V, F, body_V, body_F, target_edge=None, expected_loops=None
         report.fail("closed", "the mesh has no boundary; a garment needs openings")
     elif expected_loops is not None and loops != expected_loops:
         report.fail("openings", f"{loops} boundary loops, expected {expected_loops}")
+    placement(V, np.asarray(body_V), report)
+    if "units" in report.failures:
+        return report
     triangle_quality(V, F, report, target_edge)
     body_clearance(V, F, np.asarray(body_V), np.asarray(body_F), report)
     self_intersections(V, F, report)

@@ -13,6 +13,7 @@ import numpy as np
 import torch
 
 from drapebench.cache import Cache, body_key, content_hash
+from drapebench.garments.pins import garment_pins
 from drapebench.geometry.ops import vertex_normals
 from drapebench.geometry.proximity import nearest_body_vertex
 from drapebench.progress import progress
@@ -22,7 +23,6 @@ from methods.gensim import losses
 from methods.gensim.arap import ArapConfig, Binding, bind, front_aligned, handle_targets, motion_aware_arap, skinned_template
 from methods.gensim.config import gensim_params
 from methods.gensim.network import PEN
-from methods.gensim.pins import garment_pins
 
 log = logging.getLogger("drapebench")
 PEN_CHUNK = 16  # frames per PEN pass at inference

@@ -11,6 +11,7 @@ import torch
 from drapebench.body.lbs import lbs
 from drapebench.body.skinning import nearest_body_vertices, nearest_weights, transfer_shape
 from methods.base import DrapeResult, DrapingMethod, FitReport
+from methods.params import method_params
 
 
 class LBSMethod(DrapingMethod):
@@ -19,6 +20,10 @@ class LBSMethod(DrapingMethod):
     name = "lbs"
     generic = True
     needs_reference = False
+
+    def __init__(self, cfg=None) -> None:
+        """``cfg`` must be empty: LBS has no parameters (ValueError naming any key given)."""
+        super().__init__(method_params("lbs", cfg, {}))
 
     def fit(self, data, train_cfg=None) -> FitReport:
         """Nothing to learn: binds the body and material."""

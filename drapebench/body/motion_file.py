@@ -1,0 +1,140 @@
+"""A user's body motion from a file: poses in the body's joint order, checked, as a :class:`BodySequence`.
+
+File (``.npz``, or ``.h5``/``.hdf5`` with datasets of the same names): ``poses`` (T, J, 3) or (T, 3J)
+axis-angle in radians per joint, in the body's joint order (``body.joint_names``; docs/design.md), each
+rotation about the joint in world-aligned axes of the rest pose (Z up, facing -Y), chained parent ->
+child; optional ``trans`` (T, 3) root translation in metres (default zero), ``betas`` (S,) shape,
+``fps`` (a scalar, a dataset or an h5 attribute).
+"""
+
+from __future__ import annotations
+
+import zipfile
+import zlib
+from pathlib import Path
+
+import h5py
+import numpy as np
+import torch
+
+from drapebench.body.motions import smoothstep
+from drapebench.body.sequence import DEFAULT_TRANSITION, BodySequence, make_sequence
+
+MAX_ROOT_SPEED = 15.0  # m/s; a faster root is taken for a translation in centimetres or millimetres
+
+
+def read_motion_file(path: str | Path) -> dict:
+    """The arrays of a motion file: ``poses`` and whichever of ``trans``, ``betas``, ``fps`` it holds (numpy)."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"motion file {path} does not exist (motion.path must name an .npz or .h5 file)")
+    suffix = path.suffix.lower()
+    if suffix not in (".npz", ".h5", ".hdf5"):
+        raise ValueError(f"{path}: unsupported motion file type {path.suffix!r}; use .npz or .h5")
+    try:
+        if suffix == ".npz":
+            with np.load(path, allow_pickle=False) as z:
+                d = {k: z[k] for k in z.files}
+        else:
+            with h5py.File(path, "r") as f:
+                d = {k: f[k][()] for k in f if isinstance(f[k], h5py.Dataset)}
+                if "fps" in f.attrs and "fps" not in d:
+                    d["fps"] = f.attrs["fps"]
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as err:
+        raise ValueError(f"{path} cannot be read as {suffix[1:]} ({type(err).__name__}: {err}); write it with numpy.savez or h5py") from err
+    if "poses" not in d:
+        raise ValueError(f"{path} has no 'poses' array (found {sorted(d)}); a motion file needs poses (T, J, 3) axis-angle "
+                         "[, trans (T, 3), betas (S,), fps]")  # fmt: skip
+    return d
+
+
+def check_poses(poses: np.ndarray, body, source: str) -> np.ndarray:
+    """(T, J, 3) float32 axis-angle poses checked against ``body``: shape, joint count, radians."""
+    names = ", ".join(f"{i} {n}" for i, n in enumerate(body.joint_names))
+    J = body.n_joints
+    poses = np.asarray(poses, dtype=np.float64)
+    if poses.ndim == 2 and poses.shape[1] % 3 == 0:
+        poses = poses.reshape(len(poses), -1, 3)
+    if poses.ndim == 4 and poses.shape[-2:] == (3, 3):
+        raise ValueError(f"{source}: poses {poses.shape} are rotation matrices; give axis-angle (T, {J}, 3), e.g. "
+                         "drapebench.body.matrix_to_axis_angle(torch.as_tensor(R))")  # fmt: skip
+    if poses.ndim == 3 and poses.shape[-1] == 4:
+        raise ValueError(f"{source}: poses {poses.shape} look like quaternions; give axis-angle (T, {J}, 3) in radians")
+    if poses.ndim != 3 or poses.shape[-1] != 3:
+        raise ValueError(f"{source}: poses have shape {poses.shape}; expected (T, {J}, 3) or (T, {3 * J}) axis-angle")
+    if poses.shape[1] != J:
+        raise ValueError(f"{source}: poses have {poses.shape[1]} joints, body {body.name} has {J}; give them in its "
+                         f"joint order: {names}")  # fmt: skip
+    if not np.isfinite(poses).all():
+        raise ValueError(f"{source}: poses contain NaN or Inf (frames {np.flatnonzero(~np.isfinite(poses).all((1, 2)))[:10].tolist()}); clean the file")
+    angle = float(np.linalg.norm(poses, axis=-1).max())
+    if angle > 2.5 * np.pi:
+        raise ValueError(f"{source}: a joint rotates by {angle:.0f} rad; poses must be axis-angle in radians (degrees? multiply by pi/180)")
+    return poses.astype(np.float32)
+
+
+def load_motion(path: str | Path, body, fps: float | None = None, betas=None, n_frames: int | None = None,
+                transition: int = DEFAULT_TRANSITION, name: str | None = None) -> BodySequence:  # fmt: skip
+    """A user's motion file (see the module docstring) as a test :class:`BodySequence` on ``body``.
+
+    ``fps`` overrides the file's; ``betas`` the file's (else the mean shape; :meth:`BodyModel.full_betas`);
+    ``n_frames`` keeps the first frames (None: all); ``transition`` frames are prepended that blend from the
+    rest pose (pose 0, trans 0) into the first frame (quintic smoothstep). Raises ValueError naming the
+    problem and the fix (no poses, wrong joint count, degrees, centimetres, fewer than 2 frames, no fps).
+    """
+    path = Path(path)
+    d = read_motion_file(path)
+    poses = check_poses(d["poses"], body, str(path))
+    T = len(poses)
+    trans = np.zeros((T, 3), np.float32) if "trans" not in d else np.asarray(d["trans"], dtype=np.float32)
+    if trans.shape != (T, 3):
+        raise ValueError(f"{path}: trans has shape {trans.shape}; expected ({T}, 3) metres, one row per pose")
+    if fps is None:
+        if "fps" not in d:
+            raise ValueError(f"{path} has no fps; give it in the file or as motion.fps=30")
+        fps = float(np.asarray(d["fps"]).reshape(-1)[0])
+    if not fps > 0:
+        raise ValueError(f"fps must be > 0 frames per second, got {fps} (motion.fps or the file's fps)")
+    if n_frames is not None:
+        if not 2 <= n_frames <= T:
+            raise ValueError(f"motion.n_frames={n_frames}: {path} has {T} frames; give 2..{T} or null for all")
+        poses, trans = poses[:n_frames], trans[:n_frames]
+    if len(poses) < 2:
+        raise ValueError(f"{path} has {len(poses)} frame(s); a motion needs at least 2")
+    speed = float(np.linalg.norm(np.diff(trans, axis=0), axis=1).max()) * fps
+    if speed > MAX_ROOT_SPEED:
+        raise ValueError(f"{path}: the root moves at up to {speed:.0f} m/s; trans must be metres (centimetres? divide by 100)")
+    if transition < 0:
+        raise ValueError(f"motion.transition must be >= 0 frames, got {transition}")
+    s = smoothstep(np.arange(transition) / max(transition, 1))[:, None]
+    poses = np.concatenate([s[..., None] * poses[:1], poses]).astype(np.float32)
+    trans = np.concatenate([s * trans[:1], trans]).astype(np.float32)
+    if betas is None and "betas" in d:
+        betas = np.asarray(d["betas"], dtype=np.float32).reshape(-1)
+    return BodySequence(
+        name=name or path.stem, motion="file", betas=body.full_betas(betas, note=True).float().cpu(), poses=torch.from_numpy(poses),
+        trans=torch.from_numpy(trans), fps=fps, split="test", n_transition=transition, params={"source": str(path)},
+    )  # fmt: skip
+
+
+def sequence_from_config(m: dict, body) -> BodySequence:
+    """The test sequence a config's ``motion`` node (a dict) describes: ``file`` reads ``path``
+    (:func:`load_motion`), any other name generates a procedural motion (:func:`make_sequence`), with betas
+    padded by :meth:`BodyModel.full_betas`. Raises ValueError for a key the chosen motion does not read."""
+    if m["name"] == "file":
+        if m.get("params"):
+            raise ValueError(f"motion.params {sorted(m['params'])} are parameters of the procedural motions; motion=file reads path")
+        if m.get("path") in (None, "???"):
+            raise ValueError("motion=file needs the file: motion.path=/path/to/poses.npz (or .h5)")
+        return load_motion(m["path"], body, fps=m.get("fps"), betas=m.get("betas"), n_frames=m.get("n_frames"),
+                           transition=int(m["transition"]))  # fmt: skip
+    if m.get("path") is not None:
+        raise ValueError(f"motion.path is read only by motion=file (a user's pose file), not by motion={m['name']}")
+    if m.get("n_frames") is None or m.get("fps") is None:
+        raise ValueError(f"motion={m['name']} needs motion.n_frames and motion.fps (null only for motion=file)")
+    if int(m["n_frames"]) + int(m["transition"]) < 2:
+        raise ValueError(f"motion.n_frames={m['n_frames']} with transition={m['transition']} gives fewer than 2 frames; "
+                         "a motion needs at least 2 (velocities): raise motion.n_frames")  # fmt: skip
+    betas = None if m.get("betas") is None else body.full_betas(m["betas"], note=True).float().cpu()
+    return make_sequence(m["name"], int(m["n_frames"]), float(m["fps"]), int(m["seed"]), betas=betas,
+                         transition=int(m["transition"]), split="test", **m.get("params", {}))  # fmt: skip

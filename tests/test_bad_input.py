@@ -1,0 +1,265 @@
+"""Bad input at every entry point (run.py overrides, the Python API, files on disk) fails with a message that
+names the problem and the fix, and leaves no partial file; a user's own garment and motion work from run.py.
+
+Covered elsewhere: a truncated or corrupt cache file of every kind (tests/test_cache.py), a truncated
+training checkpoint and a training killed mid-way then started again (tests/train/test_trainer.py), a run
+interrupted mid-way (tests/test_experiment.py), a damaged body file (tests/body/test_model.py), broken
+garment meshes by check name (tests/garments/test_factory.py), bad materials (tests/physics/test_material.py).
+"""
+
+import logging
+import multiprocessing
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+import torch
+from hydra import compose, initialize_config_dir
+
+from drapebench.body import load_body, make_sequence
+from drapebench.body.motion_file import load_motion, sequence_from_config
+from drapebench.cache import Cache
+from drapebench.experiment import run, warn_untrained_shape
+from drapebench.garments import garment_from_config, load_garment, make_garment
+from drapebench.garments.pins import MIN_PINS
+from drapebench.physics import Material
+from drapebench.schema import check_keys, register
+
+ROOT = Path(__file__).resolve().parents[1]
+register()
+
+
+def _compose(overrides):
+    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
+        return compose("config", overrides=overrides)
+
+
+# ---------------------------------------------------------------- config keys (issue point 7)
+@pytest.mark.parametrize(
+    "override, named, listed",
+    [("+garment.obj=my.obj", "'garment.obj'", "kind, params, path, pins, seed"), ("+garmnet=skirt", "did you mean garment", "garment"),
+     ("+motion.foo=1", "'motion.foo'", "betas, fps, n_frames")],
+)  # fmt: skip
+def test_a_key_added_with_plus_that_nothing_reads_fails_naming_it_and_the_valid_keys(override, named, listed, tmp_path):
+    cfg = _compose([override, "body=anny_lowres", "viz=none"])
+    with pytest.raises(ValueError, match=named) as err:
+        run(cfg, tmp_path / "out")
+    assert "valid keys" in str(err.value) and listed in str(err.value)
+    assert not (tmp_path / "out").exists()  # nothing written
+    check_keys(_compose(["body=anny_lowres"]))  # the defaults pass
+
+
+def test_lbs_rejects_a_parameter_it_does_not_read():
+    import methods
+
+    with pytest.raises(ValueError, match=r"unknown lbs parameter\(s\) \['foo'\]"):
+        methods.get("lbs")({"foo": 1})
+    methods.get("lbs")({})
+
+
+# ---------------------------------------------------------------- a user's garment (issue point 6)
+@pytest.fixture(scope="module")
+def skirt_obj(tmp_path_factory, body_lowres):
+    path = tmp_path_factory.mktemp("user") / "skirt.obj"
+    g = make_garment("skirt", body_lowres)
+    g.export(path)
+    return path, g
+
+
+def test_a_user_garment_gets_pins_on_its_top_band_or_the_ones_given(skirt_obj, body_lowres):
+    path, made = skirt_obj
+    g = garment_from_config({"kind": "obj", "path": str(path), "pins": None, "params": {}, "seed": 0}, body_lowres)
+    assert g.kind == "obj" and g.pins.numel() >= MIN_PINS
+    z = g.vertices[:, 2]
+    assert z[g.pins].min() > z.max() - 0.25  # the waistband, not the hem
+    assert z[g.pins].mean() > z.mean()
+    given = garment_from_config({"kind": "obj", "path": str(path), "pins": [0, 1, 2, 3], "params": {}}, body_lowres)
+    assert given.pins.tolist() == [0, 1, 2, 3]
+    with pytest.raises(ValueError, match=r"pin indices \[99999\] are outside"):
+        load_garment(path, body_lowres, pins=[0, 1, 99999])
+    with pytest.raises(ValueError, match="garment.path is read only by garment=obj"):
+        garment_from_config({"kind": "skirt", "path": str(path), "params": {}}, body_lowres)
+    with pytest.raises(ValueError, match="garment=obj reads path and pins"):
+        garment_from_config({"kind": "obj", "path": str(path), "params": {"ease": 0.01}}, body_lowres)
+    with pytest.raises(ValueError, match=r"garment=obj needs the file: garment.path="):
+        garment_from_config(dict(_compose(["garment=obj"]).garment), body_lowres)
+
+
+def _write_obj(path, V, F):
+    with open(path, "w") as f:
+        f.writelines(f"v {x} {y} {z}\n" for x, y, z in V)
+        f.writelines(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in F)
+
+
+def test_a_user_garment_that_is_no_mesh_too_large_or_inside_the_body_fails_with_the_fix(tmp_path, skirt_obj, body_lowres):
+    _, g = skirt_obj
+    V, F = g.vertices.numpy().astype(np.float64), g.faces.numpy()
+    (tmp_path / "text.obj").write_text("just some text\n")
+    with pytest.raises(ValueError, match=r"is not a mesh: 0 vertices and 0 faces"):
+        load_garment(tmp_path / "text.obj", body_lowres)
+    (tmp_path / "binary.obj").write_bytes(bytes(range(256)))
+    with pytest.raises(ValueError, match="not a text OBJ"):
+        load_garment(tmp_path / "binary.obj", body_lowres)
+    _write_obj(tmp_path / "cm.obj", V * 100, F)
+    with pytest.raises(ValueError, match=r"looks like centimetres: scale by 0.01") as err:
+        load_garment(tmp_path / "cm.obj", body_lowres)
+    assert "fix units" in str(err.value)
+    _write_obj(tmp_path / "away.obj", V + [0.0, 0.0, 3.0], F)
+    with pytest.raises(ValueError, match="does not overlap the body"):
+        load_garment(tmp_path / "away.obj", body_lowres)
+    centre = np.array([V[:, 0].mean(), V[:, 1].mean(), 0.0])
+    shrunk = (V - centre) * [0.7, 0.7, 1.0] + centre  # pulled into the hips
+    _write_obj(tmp_path / "inside.obj", shrunk, F)
+    with pytest.raises(ValueError, match="inside_body") as err:
+        load_garment(tmp_path / "inside.obj", body_lowres)
+    assert "fix inside_body: the garment must start outside the body" in str(err.value)
+
+
+# ---------------------------------------------------------------- a user's motion (issue point 6)
+@pytest.fixture(scope="module")
+def kick():
+    return make_sequence("kick", 12, 30.0, seed=3, transition=0)
+
+
+def test_a_motion_file_round_trips_after_the_blend_from_the_rest_pose(tmp_path, kick, body_lowres):
+    np.savez(tmp_path / "kick.npz", poses=kick.poses.numpy(), trans=kick.trans.numpy(), fps=25.0, betas=np.array([1.0, -0.5]))
+    seq = load_motion(tmp_path / "kick.npz", body_lowres, transition=5)
+    assert seq.n_frames == 5 + 12 and seq.n_transition == 5 and seq.fps == 25.0
+    assert torch.equal(seq.poses[5:], kick.poses) and torch.equal(seq.trans[5:], kick.trans)
+    assert torch.equal(seq.poses[0], torch.zeros_like(seq.poses[0]))  # starts at the rest pose the garment is made on
+    step = (seq.poses[1:6] - seq.poses[:5]).norm(dim=(1, 2))
+    assert step.max() < 0.5 * (kick.poses[0]).norm()  # a blend, not a jump
+    assert seq.betas.tolist() == [1.0, -0.5] + [0.0] * 8
+    with h5py.File(tmp_path / "kick.h5", "w") as f:  # h5 with fps as an attribute, poses flattened (T, 3J)
+        f["poses"] = kick.poses.reshape(12, -1).numpy()
+        f.attrs["fps"] = 30.0
+    seq = load_motion(tmp_path / "kick.h5", body_lowres, transition=0, n_frames=10)
+    assert seq.n_frames == 10 and torch.equal(seq.poses, kick.poses[:10]) and not seq.trans.any()
+
+
+@pytest.mark.parametrize(
+    "arrays, message",
+    [
+        (lambda p, t: {"pose": p}, r"has no 'poses' array \(found \['pose'\]\)"),
+        (lambda p, t: {"poses": p[:, :21], "fps": 30}, r"poses have 21 joints, body anny_lowres has 22; .*0 pelvis, 1 spine1"),
+        (lambda p, t: {"poses": np.degrees(p) + 200, "fps": 30}, "degrees"),
+        (lambda p, t: {"poses": p, "trans": t * 100 + np.arange(len(t))[:, None], "fps": 30}, "centimetres"),
+        (lambda p, t: {"poses": np.tile(np.eye(3), (len(p), 22, 1, 1)), "fps": 30}, "rotation matrices"),
+        (lambda p, t: {"poses": p}, r"has no fps; give it in the file or as motion.fps"),
+        (lambda p, t: {"poses": p[:1], "fps": 30}, "1 frame"),
+        (lambda p, t: {"poses": p, "fps": 0}, "fps must be > 0"),
+        (lambda p, t: {"poses": p, "fps": 30, "betas": np.ones(12)}, r"12 betas given; body anny_lowres has 10"),
+    ],
+)
+def test_a_bad_motion_file_fails_naming_the_problem(arrays, message, tmp_path, kick, body_lowres):
+    np.savez(tmp_path / "m.npz", **arrays(kick.poses.numpy(), kick.trans.numpy()))
+    with pytest.raises(ValueError, match=message):
+        load_motion(tmp_path / "m.npz", body_lowres)
+
+
+def test_unreadable_or_missing_motion_files(tmp_path, body_lowres):
+    (tmp_path / "cut.npz").write_bytes(b"PK\x03\x04 truncated")
+    with pytest.raises(ValueError, match="cannot be read as npz"):
+        load_motion(tmp_path / "cut.npz", body_lowres)
+    with pytest.raises(FileNotFoundError, match="motion.path must name"):
+        load_motion(tmp_path / "nope.npz", body_lowres)
+    (tmp_path / "m.bvh").write_text("HIERARCHY")
+    with pytest.raises(ValueError, match="unsupported motion file type '.bvh'"):
+        load_motion(tmp_path / "m.bvh", body_lowres)
+
+
+def test_run_py_drapes_a_user_garment_on_a_user_motion(tmp_path, skirt_obj, kick):
+    np.savez(tmp_path / "kick.npz", poses=kick.poses.numpy(), trans=kick.trans.numpy(), fps=30.0)
+    cfg = _compose(["body=anny_lowres", "viz=none", "garment=obj", f"garment.path={skirt_obj[0]}", "motion=file",
+                    f"motion.path={tmp_path / 'kick.npz'}", "motion.transition=3"])  # fmt: skip
+    record = run(cfg, tmp_path / "out")
+    assert record["garment"] == "obj" and record["motion"] == "file" and record["n_frames"] == 12 + 3
+    assert np.isfinite(record["eps_c"]) and (tmp_path / "out" / "metrics.json").exists()
+
+
+# ---------------------------------------------------------------- body shape, device, frames (issue point 9)
+def test_one_rule_for_betas_fewer_padded_more_or_nan_rejected(body_lowres, kick, caplog):
+    with caplog.at_level(logging.INFO, logger="drapebench"):
+        assert body_lowres.full_betas([1.0, 2.0, 3.0], note=True).tolist() == [1.0, 2.0, 3.0] + [0.0] * 7
+    assert "3 betas given; zero-padded" in caplog.text
+    with pytest.raises(ValueError, match="11 betas given; body anny_lowres has 10 shape coefficients: give at most 10"):
+        body_lowres.full_betas(torch.ones(11))
+    with pytest.raises(ValueError, match="betas contains NaN"):
+        body_lowres.full_betas([0.0, float("nan")])
+    import methods
+
+    lbs = methods.get("lbs")()
+    lbs.bind(body_lowres, Material())
+    g = make_garment("skirt", body_lowres)
+    short = make_sequence("walk", 4, 30.0, 0, betas=[1.0, -1.0, 0.5], transition=0)
+    padded = make_sequence("walk", 4, 30.0, 0, betas=[1.0, -1.0, 0.5] + [0.0] * 7, transition=0)
+    assert torch.equal(lbs.drape(g, short).vertices, lbs.drape(g, padded).vertices)  # 3 betas work in the Python API
+    long = make_sequence("walk", 4, 30.0, 0, betas=[0.0] * 10 + [2.0], transition=0)
+    with pytest.raises(ValueError, match="11 betas given"):
+        lbs.drape(g, long)  # not silently cut to 10
+
+
+def test_betas_outside_the_training_range_warn(caplog):
+    with caplog.at_level(logging.WARNING, logger="drapebench"):
+        assert warn_untrained_shape([3.0, 0.0, 0.0, 0.0, 0.5], {"dataset": "train_small"}, {}, "gensim") == [0, 4]
+    assert "b0=3, b4=0.5 are outside the range gensim was trained on" in caplog.text
+    assert warn_untrained_shape([1.0, 2.0], {"dataset": "train_small"}, {}, "gensim") == []
+    assert warn_untrained_shape([1.0, 2.0], {"dataset": "train_small"}, {"train": {"beta_range": [0.5, 2.0]}}, "gaps") == [0]
+
+
+def test_cuda_without_a_cuda_torch_names_the_fix(monkeypatch):
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
+    with pytest.raises(ValueError, match=r"device=cuda requested but .*use device=cpu, or install a CUDA build of torch"):
+        load_body("anny_lowres", device="cuda")
+    with pytest.raises(ValueError, match="is not a torch device"):
+        load_body("anny_lowres", device="gpu0")
+
+
+@pytest.mark.parametrize(
+    "motion, message",
+    [
+        ({"n_frames": 1, "transition": 0}, "fewer than 2 frames"),
+        ({"n_frames": 0, "transition": 0}, "fewer than 2 frames"),
+        ({"fps": 0.0}, "fps must be positive"),
+        ({"path": "x.npz"}, "motion.path is read only by motion=file"),
+        ({"name": "file", "path": None}, "motion=file needs the file: motion.path="),
+        ({"betas": [0.0] * 11}, "11 betas given"),
+    ],
+)
+def test_bad_motion_settings_fail(motion, message, body_lowres):
+    m = {"name": "walk", "n_frames": 10, "fps": 30.0, "transition": 2, "seed": 0, "betas": None, "params": {}, **motion}
+    with pytest.raises(ValueError, match=message):
+        sequence_from_config(m, body_lowres)
+
+
+@pytest.mark.parametrize("key", ["thickness", "bulk_density", "young", "bending_multiplier", "dt"])
+@pytest.mark.parametrize("value", [0.0, -1.0])
+def test_non_positive_material_values_are_named(key, value):
+    with pytest.raises(ValueError, match=f"Material.{key} must be positive"):
+        Material(**{key: value})
+
+
+# ---------------------------------------------------------------- two identical runs share the cache (issue point 9)
+def _build_entry(path, barrier, out):
+    cache = Cache("race", 1)
+    barrier.wait()
+    value = cache.get_or_build(path, lambda: np.arange(200_000.0), lambda v, p: np.save(open(p, "wb"), v), lambda p: np.load(p))
+    out.put(float(value.sum()))
+
+
+def test_two_processes_building_one_cache_entry_at_once_both_get_it_and_leave_one_sealed_file(tmp_path, monkeypatch):
+    monkeypatch.setenv("DRAPEBENCH_DATA", str(tmp_path))
+    path = Cache("race", 1).path("entry", suffix=".npy")
+    ctx = multiprocessing.get_context("fork")
+    barrier, out = ctx.Barrier(2), ctx.Queue()
+    procs = [ctx.Process(target=_build_entry, args=(path, barrier, out)) for _ in range(2)]
+    for p in procs:
+        p.start()
+    for p in procs:
+        p.join(60)
+    assert [p.exitcode for p in procs] == [0, 0]
+    expected = float(np.arange(200_000.0).sum())
+    assert [out.get(timeout=5), out.get(timeout=5)] == [expected, expected]
+    assert sorted(f.name for f in path.parent.iterdir()) == [path.name, path.name + ".sha256"]  # no temporary file left
+    assert Cache("race", 1).load(path, np.load).sum() == expected  # sealed and intact
