@@ -23,7 +23,7 @@ from omegaconf import DictConfig, OmegaConf
 from drapebench.body.dataset import dataset_hash
 from drapebench.cache import PROJECT_ROOT, Cache, atomic_write, body_key, content_hash, forcing, write_json
 from drapebench.errors import DrapeFailed
-from drapebench.results import environment, git_commit, write_prediction
+from drapebench.results import environment, git_commit, headline, write_prediction
 from drapebench.train.checkpoint import write_losses
 
 log = logging.getLogger("drapebench")
@@ -228,7 +228,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     stages["eval_s"] = time.perf_counter() - t
     record = {
         "method": cfg.method.name, "garment": cfg.garment.kind, "motion": m.name, "body": cfg.body.name,
-        "shape": shape_label(m.betas), "n_vertices": garment.n_vertices, "n_frames": seq.n_frames, **summary,
+        "shape": shape_label(m.betas), "reference": cfg.reference.solver or "none", "n_vertices": garment.n_vertices, "n_frames": seq.n_frames, **summary,
         "ms_per_frame": drape_ms_per_frame(result.timings_ms, drape_s, seq.n_frames), "train_s": train_s,
         **{f"ms_{k}": v / seq.n_frames for k, v in result.timings_ms.items()},
         "seed": int(cfg.seed), "experiment": cfg.experiment_name, "checkpoint": ckpt, "commit": git_commit(),
@@ -253,7 +253,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     stages["total_s"] = time.perf_counter() - t_start
     record.update(stages)
     write_json(out / "metrics.json", record)  # last: its presence marks a complete run
-    log.info("%s", " ".join(f"{k}={record[k]:.3g}" for k in ("eps_e", "eps_a", "eps_c", "ms_per_frame", "total_s")))
+    log.info("%s (total %.1f s; what they mean: docs/metrics.md, or the legend under any table)", headline(record), record["total_s"])
     log.info("results in %s", out)
     return record
 
