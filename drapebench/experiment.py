@@ -246,8 +246,9 @@ def _run(cfg: DictConfig, out: Path) -> dict:
 
         t = time.perf_counter()
         inside = inside_body(result.vertices, seq.vertices(body), body.faces)  # the rule behind eps_c
-        record_drape(out / "drape.rrd", seq.vertices(body), body.faces, result.vertices, garment.topology, seq.fps,
-                     penetrating=inside, reference=reference, stages=result.extras,
+        shown = body if cfg.viz_body is None else load_body(cfg.viz_body, device=cfg.device)  # a lighter body, same motion
+        record_drape(out / "drape.rrd", seq.vertices(shown), shown.faces, result.vertices, garment.topology, seq.fps,
+                     penetrating=inside, reference=reference, stages=result.extras, metrics=frames,
                      name=f"{cfg.method.name}_{garment.kind}_{seq.name}")  # fmt: skip
         stages["viz_s"] = time.perf_counter() - t
     stages["total_s"] = time.perf_counter() - t_start
