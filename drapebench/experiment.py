@@ -169,12 +169,17 @@ def run(cfg: DictConfig, out_dir: str | Path | None = None) -> dict:
     except DrapeFailed as err:
         if getattr(cfg.on_failure, "name", cfg.on_failure) != "record":
             raise
-        record = {"status": "failed", "method": cfg.method.name, "garment": cfg.garment.kind, "motion": cfg.motion.name,
-                  "body": cfg.body.name, "shape": shape_label(cfg.motion.betas), "error": type(err).__name__,
-                  "message": str(err), "experiment": cfg.experiment_name, "commit": git_commit()}  # fmt: skip
+        record = failure_record(cfg, err)
         write_json(out / "failed.json", record)
         log.error("run failed (recorded in %s, on_failure=record): %s", out / "failed.json", err)
         return record
+
+
+def failure_record(cfg: DictConfig, err: BaseException) -> dict:
+    """The ``failed.json`` record of a run of ``cfg`` that raised ``err``: the scene, the error and its message."""
+    return {"status": "failed", "method": cfg.method.name, "garment": cfg.garment.kind, "motion": cfg.motion.name,
+            "body": cfg.body.name, "shape": shape_label(cfg.motion.betas), "error": type(err).__name__,
+            "message": str(err), "experiment": cfg.experiment_name, "commit": git_commit()}  # fmt: skip
 
 
 def _run(cfg: DictConfig, out: Path) -> dict:
@@ -266,12 +271,49 @@ except ImportError:  # pragma: no cover - hydra < 1.1
 
 
 class SweepSummary(Callback):
-    """Hydra callback: at the end of a sweep, gather every job's metrics.json into summary.md / summary.csv."""
+    """Hydra callback: at the end of a sweep, gather every job's metrics.json into summary.md / summary.csv.
+    A job that raises leaves ``failed.json`` (the error and its message) in its folder; a sweep that stops
+    early still gets its summary (finished and failed jobs), and one that stops before any job started
+    (a bad override) leaves no empty folder behind."""
+
+    def on_multirun_start(self, config: DictConfig, **kwargs) -> None:
+        import atexit
+
+        self._ended = False
+        atexit.register(self._after_early_stop, Path(config.hydra.sweep.dir))
+
+    def on_job_end(self, config: DictConfig, job_return, **kwargs) -> None:
+        from hydra.core.utils import JobStatus
+
+        out = Path(job_return.hydra_cfg.hydra.runtime.output_dir) if job_return.hydra_cfg else None
+        if job_return.status == JobStatus.FAILED and out is not None and out.is_dir() and not (out / "failed.json").exists():
+            write_json(out / "failed.json", failure_record(config, job_return._return_value))
 
     def on_multirun_end(self, config: DictConfig, **kwargs) -> None:
+        self._ended = True
+        self._summarise(Path(config.hydra.sweep.dir))
+
+    def _summarise(self, sweep_dir: Path) -> None:
         from drapebench.report import write_summary
 
-        sweep_dir = Path(config.hydra.sweep.dir)
         if sweep_dir.exists():
-            path = write_summary(sweep_dir)
-            log.info("sweep summary: %s", path)
+            log.info("sweep summary: %s", write_summary(sweep_dir))
+
+    def _after_early_stop(self, sweep_dir: Path) -> None:
+        if self._ended or not sweep_dir.is_dir():
+            return
+        import re
+        import shutil
+        import sys
+
+        if not any(p.is_dir() for p in sweep_dir.iterdir()):
+            shutil.rmtree(sweep_dir)
+            if re.fullmatch(r"\d{4}-\d{2}-\d{2}", sweep_dir.parent.name) and not any(sweep_dir.parent.iterdir()):
+                sweep_dir.parent.rmdir()  # the default layout's multirun/<date>/, when this was its only sweep
+            print(f"the sweep stopped before any job started; removed its empty folder {sweep_dir}", file=sys.stderr)
+            return
+        try:
+            self._summarise(sweep_dir)
+            print(f"the sweep stopped early; finished and failed jobs: {sweep_dir / 'summary.md'}", file=sys.stderr)
+        except FileNotFoundError:  # no job finished or recorded a failure
+            print(f"the sweep stopped before any job finished; see the run.log in each job folder of {sweep_dir}", file=sys.stderr)

@@ -239,7 +239,8 @@ def write_summary(sweep_dir: Path) -> Path:
     with atomic_write(Path(sweep_dir) / "summary.csv", "w") as f:
         df.to_csv(f, index=False)
     with atomic_write(Path(sweep_dir) / "summary.md", "w") as f:
-        f.write(df.drop(columns="run_dir").to_markdown(index=False, floatfmt=".4g") + f"\n\n{legend(df.columns)}\n")
+        key = legend(df.columns)
+        f.write(df.drop(columns="run_dir").to_markdown(index=False, floatfmt=".4g") + "\n" + (f"\n{key}\n" if key else ""))
     return Path(sweep_dir) / "summary.md"
 
 

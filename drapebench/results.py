@@ -51,9 +51,10 @@ def metric_label(name: str) -> str:
 
 
 def legend(names) -> str:
-    """One line explaining the metrics among ``names`` (meaning, unit, better) and where they are defined."""
+    """One line explaining the metrics among ``names`` (meaning, unit, better) and where they are defined
+    ("" when none of them is a metric)."""
     parts = [f"{n}: {METRICS[n].meaning} ({METRICS[n].unit}, {METRICS[n].better})" for n in dict.fromkeys(names) if n in METRICS]
-    return "Legend: " + "; ".join(parts) + ". Definitions: docs/metrics.md."
+    return "Legend: " + "; ".join(parts) + ". Definitions: docs/metrics.md." if parts else ""
 
 
 def headline(record: dict, names=("eps_e", "eps_a", "eps_c", "vertex_error_mm", "ms_per_frame")) -> str:
