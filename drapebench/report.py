@@ -138,6 +138,7 @@ def runtime_plot(df: pd.DataFrame, path: Path, title: str = "") -> Path:
     """Scatter of drape time (ms/frame, log x) against :func:`runtime_error`, one marker per run, a
     colour per method, labelled with its garment."""
     import matplotlib
+    import matplotlib.ticker
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -149,6 +150,10 @@ def runtime_plot(df: pd.DataFrame, path: Path, title: str = "") -> Path:
         for _, r in g.iterrows():
             ax.annotate(r["garment"], (r["ms_per_frame"], r[error]), fontsize=7, alpha=0.8, xytext=(3, 3), textcoords="offset points")
     ax.set_xscale("log")
+    plain = matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}")  # 2, not 2 x 10^0
+    ax.xaxis.set_major_formatter(plain)
+    span = df["ms_per_frame"].max() / max(df["ms_per_frame"].min(), 1e-9)
+    ax.xaxis.set_minor_formatter(plain if span < 30 else matplotlib.ticker.NullFormatter())  # minor labels when few decades
     ax.set_xlabel("drape time per frame (ms, log scale; lower is better)", fontsize=9)
     info = METRICS[error]
     ax.set_ylabel(f"{error}: {info.meaning} ({info.unit})", fontsize=9)
