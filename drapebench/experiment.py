@@ -252,6 +252,9 @@ def _run(cfg: DictConfig, out: Path) -> dict:
         t = time.perf_counter()
         inside = inside_body(result.vertices, seq.vertices(body), body.faces)  # the rule behind eps_c
         shown = body if cfg.viz_body is None else load_body(cfg.viz_body, device=cfg.device)  # a lighter body, same motion
+        if shown.n_joints != body.n_joints:
+            raise ValueError(f"viz_body={cfg.viz_body} has {shown.n_joints} joints, the run's body {body.name} {body.n_joints}: "
+                             "it cannot play the same motion; choose a body of the same skeleton (anny, anny_lowres)")  # fmt: skip
         record_drape(out / "drape.rrd", seq.vertices(shown), shown.faces, result.vertices, garment.topology, seq.fps,
                      penetrating=inside, reference=reference, stages=result.extras, metrics=frames,
                      name=f"{cfg.method.name}_{garment.kind}_{seq.name}")  # fmt: skip

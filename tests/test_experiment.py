@@ -332,3 +332,20 @@ def test_a_failed_sweep_says_what_failed_and_leaves_no_empty_folder(tmp_path):
     assert [f["garment"] for f in failed] == ["tshirt", "skirt"] and all("n_frames" in f["message"] for f in failed)
     summary = (sweep / "summary.md").read_text()
     assert summary.count("| failed ") == 2 and "n_frames" in summary
+
+
+def test_viz_body_draws_another_body_while_collisions_follow_the_runs_body(tmp_path, monkeypatch, body_full, body_lowres):
+    import drapebench.viz
+    from drapebench.experiment import run
+
+    seen = {}
+
+    def capture(path, body_vertices, body_faces, garment_vertices, topology, fps, penetrating=None, metrics=None, **kw):
+        seen.update(n_body=body_vertices.shape[1], inside=penetrating, metrics=metrics)
+        Path(path).write_bytes(b"rrd")
+
+    monkeypatch.setattr(drapebench.viz, "record_drape", capture)
+    rec = run(_compose([*FAST, "viz_body=anny"]), tmp_path / "r")
+    assert seen["n_body"] == body_full.n_vertices != body_lowres.n_vertices
+    assert float(seen["inside"][3:].double().mean() * 100) == pytest.approx(rec["eps_c"], rel=1e-6)  # magenta: the run's body
+    assert list(seen["metrics"]["frame"])[0] == 3 and "eps_c" in seen["metrics"]  # the evaluated frames, plotted
