@@ -23,7 +23,7 @@ from omegaconf import DictConfig, OmegaConf
 from drapebench.body.dataset import dataset_hash
 from drapebench.cache import PROJECT_ROOT, Cache, atomic_write, body_key, content_hash, forcing, write_json
 from drapebench.errors import DrapeFailed
-from drapebench.results import environment, git_commit, write_prediction
+from drapebench.results import environment, git_commit, headline, write_prediction
 from drapebench.schema import check_keys
 from drapebench.train.checkpoint import write_losses
 
@@ -197,9 +197,7 @@ def run(cfg: DictConfig, out_dir: str | Path | None = None) -> dict:
     except DrapeFailed as err:
         if getattr(cfg.on_failure, "name", cfg.on_failure) != "record":
             raise
-        record = {"status": "failed", "method": cfg.method.name, "garment": cfg.garment.kind, "motion": cfg.motion.name,
-                  "body": cfg.body.name, "shape": shape_label(cfg.motion.betas), "error": type(err).__name__,
-                  "message": str(err), "experiment": cfg.experiment_name, "commit": git_commit()}  # fmt: skip
+        record = failure_record(cfg, err)
         write_json(out / "failed.json", record)
         log.error("run failed (recorded in %s, on_failure=record): %s", out / "failed.json", err)
         return record
@@ -219,6 +217,13 @@ def _reference_train_data(cfg: DictConfig, garment, body, material, seq):
 
     return TrainData(body=body, material=material, garment=garment, load_train=lambda: reference_set().sequences, test_sequences=[seq],
                      references=References(lambda g, s: reference_set().references().get(g, s)))  # fmt: skip
+
+
+def failure_record(cfg: DictConfig, err: BaseException) -> dict:
+    """The ``failed.json`` record of a run of ``cfg`` that raised ``err``: the scene, the error and its message."""
+    return {"status": "failed", "method": cfg.method.name, "garment": cfg.garment.kind, "motion": cfg.motion.name,
+            "body": cfg.body.name, "shape": shape_label(cfg.motion.betas), "error": type(err).__name__,
+            "message": str(err), "experiment": cfg.experiment_name, "commit": git_commit()}  # fmt: skip
 
 
 def _run(cfg: DictConfig, out: Path) -> dict:
@@ -277,7 +282,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     stages["eval_s"] = time.perf_counter() - t
     record = {
         "method": cfg.method.name, "garment": cfg.garment.kind, "motion": m.name, "body": cfg.body.name,
-        "shape": shape_label(seq.betas), "n_vertices": garment.n_vertices, "n_frames": seq.n_frames, **summary,
+        "shape": shape_label(seq.betas), "reference": cfg.reference.solver or "none", "n_vertices": garment.n_vertices, "n_frames": seq.n_frames, **summary,
         "ms_per_frame": drape_ms_per_frame(result.timings_ms, drape_s, seq.n_frames), "train_s": train_s,
         **{f"ms_{k}": v / seq.n_frames for k, v in result.timings_ms.items()},
         "seed": int(cfg.seed), "experiment": cfg.experiment_name, "checkpoint": ckpt, "commit": git_commit(),
@@ -295,14 +300,18 @@ def _run(cfg: DictConfig, out: Path) -> dict:
 
         t = time.perf_counter()
         inside = inside_body(result.vertices, seq.vertices(body), body.faces)  # the rule behind eps_c
-        record_drape(out / "drape.rrd", seq.vertices(body), body.faces, result.vertices, garment.topology, seq.fps,
-                     penetrating=inside, reference=reference, stages=result.extras,
+        shown = body if cfg.viz_body is None else load_body(cfg.viz_body, device=cfg.device)  # a lighter body, same motion
+        if shown.n_joints != body.n_joints:
+            raise ValueError(f"viz_body={cfg.viz_body} has {shown.n_joints} joints, the run's body {body.name} {body.n_joints}: "
+                             "it cannot play the same motion; choose a body of the same skeleton (anny, anny_lowres)")  # fmt: skip
+        record_drape(out / "drape.rrd", seq.vertices(shown), shown.faces, result.vertices, garment.topology, seq.fps,
+                     penetrating=inside, reference=reference, stages=result.extras, metrics=frames,
                      name=f"{cfg.method.name}_{garment.kind}_{seq.name}")  # fmt: skip
         stages["viz_s"] = time.perf_counter() - t
     stages["total_s"] = time.perf_counter() - t_start
     record.update(stages)
     write_json(out / "metrics.json", record)  # last: its presence marks a complete run
-    log.info("%s", " ".join(f"{k}={record[k]:.3g}" for k in ("eps_e", "eps_a", "eps_c", "ms_per_frame", "total_s")))
+    log.info("%s (total %.1f s; what they mean: docs/metrics.md, or the legend under any table)", headline(record), record["total_s"])
     log.info("results in %s", out)
     return record
 
@@ -314,12 +323,49 @@ except ImportError:  # pragma: no cover - hydra < 1.1
 
 
 class SweepSummary(Callback):
-    """Hydra callback: at the end of a sweep, gather every job's metrics.json into summary.md / summary.csv."""
+    """Hydra callback: at the end of a sweep, gather every job's metrics.json into summary.md / summary.csv.
+    A job that raises leaves ``failed.json`` (the error and its message) in its folder; a sweep that stops
+    early still gets its summary (finished and failed jobs), and one that stops before any job started
+    (a bad override) leaves no empty folder behind."""
+
+    def on_multirun_start(self, config: DictConfig, **kwargs) -> None:
+        import atexit
+
+        self._ended = False
+        atexit.register(self._after_early_stop, Path(config.hydra.sweep.dir))
+
+    def on_job_end(self, config: DictConfig, job_return, **kwargs) -> None:
+        from hydra.core.utils import JobStatus
+
+        out = Path(job_return.hydra_cfg.hydra.runtime.output_dir) if job_return.hydra_cfg else None
+        if job_return.status == JobStatus.FAILED and out is not None and out.is_dir() and not (out / "failed.json").exists():
+            write_json(out / "failed.json", failure_record(config, job_return._return_value))
 
     def on_multirun_end(self, config: DictConfig, **kwargs) -> None:
+        self._ended = True
+        self._summarise(Path(config.hydra.sweep.dir))
+
+    def _summarise(self, sweep_dir: Path) -> None:
         from drapebench.report import write_summary
 
-        sweep_dir = Path(config.hydra.sweep.dir)
         if sweep_dir.exists():
-            path = write_summary(sweep_dir)
-            log.info("sweep summary: %s", path)
+            log.info("sweep summary: %s", write_summary(sweep_dir))
+
+    def _after_early_stop(self, sweep_dir: Path) -> None:
+        if self._ended or not sweep_dir.is_dir():
+            return
+        import re
+        import shutil
+        import sys
+
+        if not any(p.is_dir() for p in sweep_dir.iterdir()):
+            shutil.rmtree(sweep_dir)
+            if re.fullmatch(r"\d{4}-\d{2}-\d{2}", sweep_dir.parent.name) and not any(sweep_dir.parent.iterdir()):
+                sweep_dir.parent.rmdir()  # the default layout's multirun/<date>/, when this was its only sweep
+            print(f"the sweep stopped before any job started; removed its empty folder {sweep_dir}", file=sys.stderr)
+            return
+        try:
+            self._summarise(sweep_dir)
+            print(f"the sweep stopped early; finished and failed jobs: {sweep_dir / 'summary.md'}", file=sys.stderr)
+        except FileNotFoundError:  # no job finished or recorded a failure
+            print(f"the sweep stopped before any job finished; see the run.log in each job folder of {sweep_dir}", file=sys.stderr)

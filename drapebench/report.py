@@ -20,20 +20,17 @@ from pathlib import Path
 import pandas as pd
 
 from drapebench.cache import atomic_write
-from drapebench.results import SUMMARY_COLUMNS
+from drapebench.results import METRICS, SUMMARY_COLUMNS, legend, metric_label
 
-# table name -> (metrics shown, metric drawn against runtime, what the column groups are)
+# table name -> (metrics shown, what the column groups are)
 TABLES = {
-    "baseline": (["eps_e", "eps_a", "eps_c"], "eps_c", "garment"),
-    "gaps_table1": (["eps_e", "eps_a", "eps_c"], "eps_c", "garment"),
-    "gaps_table2": (["eps_c"], "eps_c", "garment"),
-    "gaps_table3": (["eps_e", "eps_a"], "eps_e", "shape"),
-    "runtime": (["train_s", "ms_per_frame"], "eps_c", "garment"),
-    "physics": (["eps_e", "eps_c", "penetration_mm", "jitter", "smoothness"], "eps_c", "garment"),
+    "baseline": (["eps_e", "eps_a", "eps_c"], "garment"),
+    "gaps_table1": (["eps_e", "eps_a", "eps_c"], "garment"),
+    "gaps_table2": (["eps_c"], "garment"),
+    "gaps_table3": (["eps_e", "eps_a"], "shape"),
+    "runtime": (["train_s", "ms_per_frame"], "garment"),
+    "physics": (["eps_e", "eps_c", "penetration_mm", "jitter", "smoothness"], "garment"),
 }
-METRIC_LABELS = {"eps_e": "ε_e (%)", "eps_a": "ε_a (%)", "eps_c": "ε_c (%)", "train_s": "train (s)",
-                 "ms_per_frame": "ms/frame", "penetration_mm": "pen. (mm)", "jitter": "jitter (mm)",
-                 "smoothness": "smooth.", "vertex_error_mm": "err. (mm)"}  # fmt: skip
 
 
 def _job_order(path: Path) -> list:
@@ -102,10 +99,10 @@ def table(df: pd.DataFrame, metrics: list[str], decimals: int = 3, group: str = 
                 cells[(method, garment, m)] = f"{mean:.{decimals}f}"
     methods = list(dict.fromkeys(df["method"]))
     garments = list(dict.fromkeys(df[group]))
-    cols = pd.MultiIndex.from_tuples([(g, METRIC_LABELS.get(m, m)) for g in garments for m in metrics], names=[group, "metric"])
+    cols = pd.MultiIndex.from_tuples([(g, metric_label(m)) for g in garments for m in metrics], names=[group, "metric"])
     out = pd.DataFrame(index=pd.Index(methods, name="method"), columns=cols, dtype=object)
     for (method, garment, m), v in cells.items():
-        out.loc[method, (garment, METRIC_LABELS.get(m, m))] = v
+        out.loc[method, (garment, metric_label(m))] = v
     return out.fillna("–")
 
 
@@ -116,28 +113,52 @@ def provenance(df: pd.DataFrame, command: str) -> str:
     return f"Produced by `{command}` from runs at commit(s) {commits} on {platform.machine()} / {platform.system()} ({when})."
 
 
+def scene(df: pd.DataFrame) -> str:
+    """One line naming the garments, bodies, motions and reference drapes of the runs behind a table."""
+
+    def names(col: str, missing: str = "not recorded") -> str:
+        return ", ".join(dict.fromkeys(map(str, df[col].dropna()))) if col in df and df[col].notna().any() else missing
+
+    ref = names("reference", "vbd or style3d (not recorded)" if df.get("vertex_error_mm", pd.Series(dtype=float)).notna().any() else "none")
+    return f"Scene: garments {names('garment')}; body {names('body')}; motions {names('motion')}; reference drape {ref}."
+
+
 def _markdown(t: pd.DataFrame) -> str:
     flat = t.copy()
     flat.columns = [f"{g} {m}" for g, m in t.columns]
     return flat.to_markdown()
 
 
-def runtime_plot(df: pd.DataFrame, error: str, path: Path) -> Path:
-    """Scatter of ms/frame (log x) against an error metric, one marker per method and garment."""
+def runtime_error(df: pd.DataFrame) -> str:
+    """The accuracy axis of a runtime plot: ``vertex_error_mm`` when the runs have a reference, else ``eps_e``."""
+    return "vertex_error_mm" if "vertex_error_mm" in df and df["vertex_error_mm"].notna().any() else "eps_e"
+
+
+def runtime_plot(df: pd.DataFrame, path: Path, title: str = "") -> Path:
+    """Scatter of drape time (ms/frame, log x) against :func:`runtime_error`, one marker per run, a
+    colour per method, labelled with its garment."""
     import matplotlib
+    import matplotlib.ticker
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(5, 3.5))
+    error = runtime_error(df)
+    fig, ax = plt.subplots(figsize=(6.4, 4.4))
     for method, g in df.groupby("method", sort=False):
-        ax.scatter(g["ms_per_frame"], g[error], label=method, s=30)
+        ax.scatter(g["ms_per_frame"], g[error], label=method, s=36)
         for _, r in g.iterrows():
-            ax.annotate(r["garment"], (r["ms_per_frame"], r[error]), fontsize=6, alpha=0.7)
+            ax.annotate(r["garment"], (r["ms_per_frame"], r[error]), fontsize=7, alpha=0.8, xytext=(3, 3), textcoords="offset points")
     ax.set_xscale("log")
-    ax.set_xlabel("runtime (ms / frame)")
-    ax.set_ylabel(METRIC_LABELS.get(error, error))
-    ax.legend(fontsize=7)
+    plain = matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}")  # 2, not 2 x 10^0
+    ax.xaxis.set_major_formatter(plain)
+    span = df["ms_per_frame"].max() / max(df["ms_per_frame"].min(), 1e-9)
+    ax.xaxis.set_minor_formatter(plain if span < 30 else matplotlib.ticker.NullFormatter())  # minor labels when few decades
+    ax.set_xlabel("drape time per frame (ms, log scale; lower is better)", fontsize=9)
+    info = METRICS[error]
+    ax.set_ylabel(f"{error}: {info.meaning} ({info.unit})", fontsize=9)
+    ax.set_title(f"{title + ': ' if title else ''}runtime against {error} (lower left is better)", fontsize=10)
+    ax.legend(fontsize=8, title="method", title_fontsize=8)
     ax.grid(alpha=0.3)
     return save_figure(fig, path)
 
@@ -186,22 +207,24 @@ def write_table(dirs, name: str, out: Path, command: str | None = None) -> list[
     """Write ``out``.md/.tex/.csv and ``out``_runtime.png for table ``name``; returns the paths."""
     if name not in TABLES:
         raise KeyError(f"unknown table {name!r}; tables: {', '.join(TABLES)}")
-    metrics, error, group = TABLES[name]
+    metrics, group = TABLES[name]
     df, failed = collect(dirs), collect_failures(dirs)
     t = mark_failures(table(df, metrics, group=group), failed, group=group)
     command = command or "python -m drapebench.report " + " ".join(sys.argv[1:])
     prov = provenance(pd.concat([df, failed]), command)
+    about = f"{scene(pd.concat([df, failed]))}\n\n{legend(metrics)}"
     notes = "".join(f"\n- {r.method} on {r[group]} failed: {r.message}" for _, r in failed.iterrows()) if len(failed) else ""
     out = Path(out)
     paths = [out.with_suffix(".md"), out.with_suffix(".tex"), out.with_suffix(".csv"), out.parent / f"{out.name}_runtime.png"]
     with atomic_write(paths[0], "w") as f:
-        f.write(f"# {name}\n\n{_markdown(t)}\n{notes}\n\n{prov}\n")
+        f.write(f"# {name}\n\n{_markdown(t)}\n{notes}\n\n{about}\n\n{prov}\n")
+    comment = "".join(f"{{c}} {line}\n" for line in (prov, *about.split("\n\n")))
     with atomic_write(paths[1], "w") as f:
-        f.write(f"% {prov}\n" + t.style.to_latex(hrules=True, multicol_align="c"))
+        f.write(comment.format(c="%") + t.style.to_latex(hrules=True, multicol_align="c"))
     with atomic_write(paths[2], "w") as f:
-        f.write(f"# {prov}\n")
+        f.write(comment.format(c="#"))
         t.to_csv(f)
-    runtime_plot(df, error, paths[3])
+    runtime_plot(df, paths[3], title=name)
     return paths
 
 
@@ -221,7 +244,8 @@ def write_summary(sweep_dir: Path) -> Path:
     with atomic_write(Path(sweep_dir) / "summary.csv", "w") as f:
         df.to_csv(f, index=False)
     with atomic_write(Path(sweep_dir) / "summary.md", "w") as f:
-        f.write(df.drop(columns="run_dir").to_markdown(index=False, floatfmt=".4g") + "\n")
+        key = legend(df.columns)
+        f.write(df.drop(columns="run_dir").to_markdown(index=False, floatfmt=".4g") + "\n" + (f"\n{key}\n" if key else ""))
     return Path(sweep_dir) / "summary.md"
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import platform
 import subprocess
+from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
 
@@ -14,8 +15,51 @@ import torch
 
 from drapebench.cache import PROJECT_ROOT, atomic_write
 
-SUMMARY_COLUMNS = ["method", "garment", "motion", "body", "shape", "n_vertices", "n_frames", "eps_e", "eps_a", "eps_c", "eps_c_std",
+SUMMARY_COLUMNS = ["method", "garment", "motion", "body", "reference", "shape", "n_vertices", "n_frames", "eps_e", "eps_a", "eps_c", "eps_c_std",
                    "edge_mm", "smoothness", "penetration_mm", "jitter", "vertex_error_mm", "ms_per_frame", "train_s"]  # fmt: skip
+
+
+@dataclass(frozen=True)
+class MetricInfo:
+    """What a metric column means: table label, unit, which direction is better, one-line meaning."""
+
+    label: str
+    unit: str
+    better: str
+    meaning: str
+
+
+# The one catalogue of metric names, units and directions (full definitions: docs/metrics.md).
+METRICS = {
+    "eps_e": MetricInfo("ε_e (%)", "%", "lower, down to the reference's", "mean edge-length change"),
+    "eps_a": MetricInfo("ε_a (%)", "%", "lower, down to the reference's", "mean face-area change"),
+    "eps_c": MetricInfo("ε_c (%)", "%", "lower, 0 ideal", "garment vertices inside the body"),
+    "eps_c_nn": MetricInfo("ε_c nn (%)", "%", "lower", "vertices behind their nearest body vertex (GAPS code's count)"),
+    "edge_mm": MetricInfo("edge (mm)", "mm", "lower", "mean edge-length change"),
+    "smoothness": MetricInfo("smooth. (m)", "m", "lower", "mean |cotangent Laplacian| of the positions"),
+    "penetration_mm": MetricInfo("pen. (mm)", "mm", "lower", "mean depth of the vertices inside the body"),
+    "jitter": MetricInfo("jitter (mm)", "mm", "lower, down to the reference's", "mean |second difference| of positions over frames"),
+    "vertex_error_mm": MetricInfo("err. (mm)", "mm", "lower", "mean distance to the reference drape"),
+    "ms_per_frame": MetricInfo("ms/frame", "ms", "lower", "drape time per frame"),
+    "train_s": MetricInfo("train (s)", "s", "lower", "training time"),
+}
+
+
+def metric_label(name: str) -> str:
+    """Table label of a metric column (the name itself when it is not in :data:`METRICS`)."""
+    return METRICS[name].label if name in METRICS else name
+
+
+def legend(names) -> str:
+    """One line explaining the metrics among ``names`` (meaning, unit, better) and where they are defined
+    ("" when none of them is a metric)."""
+    parts = [f"{n}: {METRICS[n].meaning} ({METRICS[n].unit}, {METRICS[n].better})" for n in dict.fromkeys(names) if n in METRICS]
+    return "Legend: " + "; ".join(parts) + ". Definitions: docs/metrics.md." if parts else ""
+
+
+def headline(record: dict, names=("eps_e", "eps_a", "eps_c", "vertex_error_mm", "ms_per_frame")) -> str:
+    """The run's headline metrics with units, e.g. ``eps_e 5.08 %, ..., ms_per_frame 7.03 ms`` (those present)."""
+    return ", ".join(f"{n} {record[n]:.3g} {METRICS[n].unit}" for n in names if n in record)
 
 
 def git_commit() -> str:

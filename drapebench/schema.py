@@ -150,6 +150,7 @@ class Config:
     data: DataConf = field(default_factory=DataConf)
     eval: EvalConf = field(default_factory=EvalConf)
     viz: VizMode = VizMode.rerun
+    viz_body: Optional[str] = None  # body drawn in drape.rrd (e.g. anny_lowres: ~4x smaller file); None: the run's body
     force: bool = False  # rebuild cached data, checkpoints and references
     on_failure: FailureMode = FailureMode.stop  # drapebench.errors.DrapeFailed: stop, or record and go on
     seed: int = 0

@@ -30,6 +30,68 @@ def strain_colors(x: torch.Tensor, topology, max_strain: float = 0.1) -> np.ndar
     return rgb.astype(np.uint8)
 
 
+LEGEND = """**Colours**
+
+- garment: strain, the mean relative edge-length change at a vertex: white 0 -> orange 5 % -> red >= 10 %
+- **magenta** garment vertices: inside the body (the rule behind eps_c)
+- skin: the posed body; blue `reference`: the physics-based drape (hidden, tick it in the blueprint)
+- green `stages/*`: a method's intermediate meshes (hidden), yellow points: its handle vertices
+
+**Plots** (per frame; the rest-pose transition at the start is not evaluated): eps_e / eps_a mean edge / face-area
+change (%), eps_c vertices inside the body (%), penetration_mm, vertex_error_mm (mm). Lower is better;
+definitions in docs/metrics.md.
+"""
+PERCENT_PLOTS = ("eps_e", "eps_a", "eps_c")
+MM_PLOTS = ("penetration_mm", "vertex_error_mm")
+NORMAL_STEPS = 64  # shading normals are stored in steps of 1/64 per component (< 1 degree)
+
+
+def camera(body_vertices: np.ndarray, fov_y_deg: float = 45.0) -> tuple[np.ndarray, np.ndarray]:
+    """Eye position and look target (m) of a 3D camera that frames every frame of ``body_vertices``
+    (T, Vb, 3; Z up, the body facing -Y) from the front-left, slightly above."""
+    lo, hi = body_vertices.reshape(-1, 3).min(0), body_vertices.reshape(-1, 3).max(0)
+    target = (lo + hi) / 2
+    radius = float(np.linalg.norm(hi - lo)) / 2
+    distance = 0.85 * radius / np.tan(np.radians(fov_y_deg) / 2)
+    direction = np.array([-0.45, -1.0, 0.2])
+    return target + distance * direction / np.linalg.norm(direction), target
+
+
+def _blueprint(name: str, eye: np.ndarray, target: np.ndarray, hidden: list[str], plots: list[str]):
+    """The view a recording opens on: the 3D scene framed by ``eye``/``target`` beside the per-frame
+    metric plots and the colour legend, on the ``frame`` timeline."""
+    import rerun.blueprint as rrb
+
+    overrides = {e: rrb.EntityBehavior(visible=False) for e in hidden} or None
+    scene = rrb.Spatial3DView(origin="/", name=name, contents=["+ /**", "- /metrics/**", "- /legend"], overrides=overrides,
+                              eye_controls=rrb.EyeControls3D(position=eye, look_target=target, eye_up=(0.0, 0.0, 1.0)))  # fmt: skip
+    side = [rrb.TimeSeriesView(name=f"{title} per frame", origin="/metrics", contents=[f"+ /metrics/{m}" for m in group])
+            for title, group in (("%", [m for m in plots if m in PERCENT_PLOTS]), ("mm", [m for m in plots if m in MM_PLOTS])) if group]  # fmt: skip
+    side.append(rrb.TextDocumentView(origin="/legend", name="legend"))
+    return rrb.Blueprint(
+        rrb.Horizontal(scene, rrb.Vertical(*side, row_shares=[2] * (len(side) - 1) + [1]), column_shares=[3, 2]),
+        rrb.TimePanel(timeline="frame", state="collapsed"), rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+    )  # fmt: skip
+
+
+def _send_mesh(stream, entity: str, x: torch.Tensor, faces: torch.Tensor, index, albedo=None, colors=None) -> None:
+    """Log mesh ``entity`` over the timeline ``index``: triangles and albedo once (static), positions
+    and vertex normals (shading) of every frame of ``x`` (T, V, 3), and per-frame ``colors`` (T, V, 3) uint8."""
+    import rerun as rr
+
+    from drapebench.geometry.ops import vertex_normals
+
+    x = x.detach().float()
+    stream.log(entity, rr.Mesh3D.from_fields(triangle_indices=faces.numpy().astype(np.uint32), albedo_factor=albedo), static=True)
+    T, V = x.shape[:2]
+    normals = (vertex_normals(x, faces) * NORMAL_STEPS).round() / NORMAL_STEPS  # quantised: the file compresses ~30 % better
+    fields = {"vertex_positions": x.reshape(-1, 3).numpy(), "vertex_normals": normals.reshape(-1, 3).numpy()}
+    if colors is not None:
+        fields["vertex_colors"] = colors.reshape(-1, 3)
+    stream.send_columns(entity, indexes=index, columns=rr.Mesh3D.columns(**fields).partition([V] * T))
+
+
 def record_drape(
     path: str | Path,
     body_vertices: torch.Tensor,
@@ -40,17 +102,20 @@ def record_drape(
     penetrating: torch.Tensor | None = None,
     reference: torch.Tensor | None = None,
     stages: dict | None = None,
+    metrics=None,
     name: str = "drape",
 ) -> Path:
     """Write ``path`` (.rrd): body (T, Vb, 3) and garment (T, V, 3) meshes on a ``frame`` timeline
-    (and ``time`` in seconds); triangles are logged once as static, positions and colours per frame
-    in columns. Garment colours show strain; ``penetrating`` (T, V) bool vertices are magenta. An
-    optional physics-based ``reference`` (T, V, 3) is logged as ``reference`` (blue, hidden by default).
-    ``stages`` are a method's intermediate results (``DrapeResult.extras``): each (T, V, 3) one is a mesh
-    ``stages/<name>`` (green, hidden by default), each (T, V) bool one the points ``stages/<name>`` at
-    those vertices of the first mesh stage (yellow)."""
+    (and ``time`` in seconds), shaded by per-frame vertex normals; triangles and flat colours are
+    logged once (static). Garment colours show strain; ``penetrating`` (T, V) bool vertices are
+    magenta. An optional physics-based ``reference`` (T, V, 3) is logged as ``reference`` (blue,
+    hidden by default). ``stages`` are a method's intermediate results (``DrapeResult.extras``): each
+    (T, V, 3) one is a mesh ``stages/<name>`` (green, hidden by default), each (T, V) bool one the
+    points ``stages/<name>`` at those vertices of the first mesh stage (yellow). ``metrics`` (a
+    per-frame DataFrame with a ``frame`` column, the run's frames.csv) are plotted beside the 3D view
+    as ``metrics/<name>`` time series. A ``legend`` text entity says what the colours mean. The view
+    opens on the ``frame`` timeline with a camera that frames the whole body."""
     import rerun as rr
-    import rerun.blueprint as rrb
 
     T = garment_vertices.shape[0]
     colors = strain_colors(garment_vertices.double(), garment_topology.to(dtype=torch.float64))
@@ -60,37 +125,24 @@ def record_drape(
     meshes = {k: v for k, v in stages.items() if v.dim() == 3}
     masks = {k: v for k, v in stages.items() if v.dim() == 2 and v.dtype == torch.bool}
     hidden = (["reference"] if reference is not None else []) + [f"stages/{k}" for k in meshes]
-    overrides = {e: rrb.EntityBehavior(visible=False) for e in hidden} or None
-    blueprint = rrb.Blueprint(rrb.Spatial3DView(origin="/", name=name, overrides=overrides), rrb.TimePanel(state="collapsed"))
+    plots = [] if metrics is None else [m for m in (*PERCENT_PLOTS, *MM_PLOTS) if m in metrics and metrics[m].notna().any()]
+    eye, target = camera(body_vertices.detach().float().numpy())
+    blueprint = _blueprint(name, eye, target, hidden, plots)
     stream = rr.RecordingStream("drapebench", recording_id=f"{name}-{np.random.default_rng().integers(1 << 62)}")
     path = Path(path)
+    faces = garment_topology.faces
     with atomic_write(path, mode=None) as tmp:
         stream.save(str(tmp), default_blueprint=blueprint)
         stream.log("/", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-        stream.log("body", rr.Mesh3D.from_fields(triangle_indices=body_faces.numpy().astype(np.uint32),
-                                                 albedo_factor=(0.85, 0.75, 0.68, 1.0)), static=True)  # fmt: skip
-        stream.log("garment", rr.Mesh3D.from_fields(triangle_indices=garment_topology.faces.numpy().astype(np.uint32)), static=True)
+        stream.log("legend", rr.TextDocument(LEGEND, media_type=rr.MediaType.MARKDOWN), static=True)
         frames = np.arange(T)
         index = [rr.TimeColumn("frame", sequence=frames), rr.TimeColumn("time", duration=frames / fps)]
-        bv = body_vertices.detach().float().numpy()
-        gv = garment_vertices.detach().float().numpy()
-        stream.send_columns("body", indexes=index, columns=rr.Mesh3D.columns(vertex_positions=bv.reshape(-1, 3)).partition([bv.shape[1]] * T))
-        stream.send_columns(
-            "garment", indexes=index,
-            columns=rr.Mesh3D.columns(vertex_positions=gv.reshape(-1, 3), vertex_colors=colors.reshape(-1, 3)).partition([gv.shape[1]] * T),
-        )  # fmt: skip
+        _send_mesh(stream, "body", body_vertices, body_faces, index, albedo=(0.85, 0.75, 0.68, 1.0))
+        _send_mesh(stream, "garment", garment_vertices, faces, index, colors=colors)
         if reference is not None:
-            rv = reference.detach().float().numpy()
-            stream.log("reference", rr.Mesh3D.from_fields(triangle_indices=garment_topology.faces.numpy().astype(np.uint32),
-                                                          albedo_factor=(0.35, 0.55, 0.95, 1.0)), static=True)  # fmt: skip
-            stream.send_columns("reference", indexes=index,
-                                columns=rr.Mesh3D.columns(vertex_positions=rv.reshape(-1, 3)).partition([rv.shape[1]] * T))  # fmt: skip
-        faces_u32 = garment_topology.faces.numpy().astype(np.uint32)
+            _send_mesh(stream, "reference", reference, faces, index, albedo=(0.35, 0.55, 0.95, 1.0))
         for k, v in meshes.items():
-            sv = v.detach().float().numpy()
-            stream.log(f"stages/{k}", rr.Mesh3D.from_fields(triangle_indices=faces_u32, albedo_factor=(0.45, 0.8, 0.45, 1.0)), static=True)
-            stream.send_columns(f"stages/{k}", indexes=index,
-                                columns=rr.Mesh3D.columns(vertex_positions=sv.reshape(-1, 3)).partition([sv.shape[1]] * T))  # fmt: skip
+            _send_mesh(stream, f"stages/{k}", v, faces, index, albedo=(0.45, 0.8, 0.45, 1.0))
         if masks and meshes:
             base = next(iter(meshes.values())).detach().float()
             for k, m in masks.items():
@@ -98,6 +150,11 @@ def record_drape(
                 pts = base[m].numpy()
                 stream.send_columns(f"stages/{k}", indexes=index,
                                     columns=rr.Points3D.columns(positions=pts).partition(m.sum(1).tolist()))  # fmt: skip
+        for m in plots:
+            rows = metrics[["frame", m]].dropna()
+            f = rows["frame"].to_numpy()
+            stream.send_columns(f"metrics/{m}", indexes=[rr.TimeColumn("frame", sequence=f), rr.TimeColumn("time", duration=f / fps)],
+                                columns=rr.Scalars.columns(scalars=rows[m].to_numpy(np.float64)))  # fmt: skip
         stream.flush()
         stream.disconnect()
     return path

@@ -319,3 +319,33 @@ def test_two_runs_started_in_the_same_second_get_their_own_directories():
     run_dir, sweep_dir = cfg.hydra.run.dir, cfg.hydra.sweep.dir  # the sub-second field keeps two runs apart
     assert re.search(r"/\d\d-\d\d-\d\d\.\d{6}_lbs_tshirt_walk$", run_dir), run_dir
     assert re.search(r"/\d\d-\d\d-\d\d\.\d{6}$", sweep_dir), sweep_dir
+
+
+def test_a_failed_sweep_says_what_failed_and_leaves_no_empty_folder(tmp_path):
+    sweep = tmp_path / "multirun" / "2026-01-01" / "12-00-00"
+    p = run_py(["-m", *FAST, "garment=tshirt,nope", "viz=none", f"hydra.sweep.dir={sweep}"], tmp_path)
+    assert p.returncode != 0 and "nope" in p.stderr
+    assert not (tmp_path / "multirun" / "2026-01-01").exists(), "a sweep that never started left its folder"
+    p = run_py(["-m", "body=anny_lowres", "motion.n_frames=0", "garment=tshirt,skirt", "viz=none", f"hydra.sweep.dir={sweep}"], tmp_path)
+    assert p.returncode != 0
+    failed = [json.loads(f.read_text()) for f in sorted(sweep.glob("*/failed.json"))]
+    assert [f["garment"] for f in failed] == ["tshirt", "skirt"] and all("n_frames" in f["message"] for f in failed)
+    summary = (sweep / "summary.md").read_text()
+    assert summary.count("| failed ") == 2 and "n_frames" in summary
+
+
+def test_viz_body_draws_another_body_while_collisions_follow_the_runs_body(tmp_path, monkeypatch, body_full, body_lowres):
+    import drapebench.viz
+    from drapebench.experiment import run
+
+    seen = {}
+
+    def capture(path, body_vertices, body_faces, garment_vertices, topology, fps, penetrating=None, metrics=None, **kw):
+        seen.update(n_body=body_vertices.shape[1], inside=penetrating, metrics=metrics)
+        Path(path).write_bytes(b"rrd")
+
+    monkeypatch.setattr(drapebench.viz, "record_drape", capture)
+    rec = run(_compose([*FAST, "viz_body=anny"]), tmp_path / "r")
+    assert seen["n_body"] == body_full.n_vertices != body_lowres.n_vertices
+    assert float(seen["inside"][3:].double().mean() * 100) == pytest.approx(rec["eps_c"], rel=1e-6)  # magenta: the run's body
+    assert list(seen["metrics"]["frame"])[0] == 3 and "eps_c" in seen["metrics"]  # the evaluated frames, plotted

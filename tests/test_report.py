@@ -123,3 +123,51 @@ def test_the_report_command_leaves_the_committed_reports_untouched_by_default(tm
     assert str(written[0].relative_to(tmp_path)) in capsys.readouterr().out
     main([str(FIXTURES), "--table", "baseline", "--out", "reports/baseline"])  # replacing is an explicit choice
     assert (tmp_path / "reports" / "baseline.md").read_text() != "committed\n"
+
+
+def test_tables_and_summaries_carry_the_scene_and_a_legend_of_their_metrics(tmp_path):
+    import shutil
+
+    md, tex, csv, _ = write_table([FIXTURES], "gaps_table2", tmp_path / "t2", command="pytest")
+    text = md.read_text()
+    assert "Scene: garments tshirt, skirt; body anny_lowres; motions walk; reference drape none." in text
+    legend_line = next(line for line in text.splitlines() if line.startswith("Legend: "))
+    assert "eps_c: garment vertices inside the body (%, lower" in legend_line and "docs/metrics.md" in legend_line
+    assert "eps_e" not in legend_line  # only the metrics the table shows
+    assert "% Legend: eps_c" in tex.read_text() and "# Scene: garments" in csv.read_text()
+    shutil.copytree(FIXTURES, tmp_path / "sweep")
+    summary = write_summary(tmp_path / "sweep").read_text()
+    assert "eps_e: mean edge-length change (%" in summary.splitlines()[-1]
+
+
+def test_legend_and_headline_come_from_one_catalogue():
+    from drapebench.results import METRICS, SUMMARY_COLUMNS, headline, legend
+
+    numeric = [c for c in SUMMARY_COLUMNS if c not in ("method", "garment", "motion", "body", "reference", "shape", "n_vertices", "n_frames")]
+    assert not [c for c in numeric if c.removesuffix("_std") not in METRICS], "every summary metric needs a unit and direction"
+    assert "nope" not in legend(["eps_c", "nope"]) and "eps_c: " in legend(["eps_c", "nope"])
+    assert headline({"eps_e": 5.081, "eps_c": 0.0, "ms_per_frame": 7.03}) == "eps_e 5.08 %, eps_c 0 %, ms_per_frame 7.03 ms"
+
+
+def test_runtime_plot_draws_stretch_or_vertex_error_never_collisions():
+    from drapebench.report import runtime_error
+
+    df = collect([FIXTURES])
+    assert runtime_error(df) == "eps_e"
+    assert runtime_error(df.assign(vertex_error_mm=[1.0, 2.0, 0.0, 0.0])) == "vertex_error_mm"
+    assert runtime_error(df.assign(vertex_error_mm=float("nan"))) == "eps_e"
+
+
+def test_committed_tables_name_the_command_and_commit_that_made_them():
+    import re
+
+    reports = Path(__file__).resolve().parent.parent / "reports"
+    prov = re.compile(r"Produced by `python -m drapebench\.report [^`]+` from runs at commit\(s\) [0-9a-f]{7,40}")
+    names = {p.stem for p in reports.glob("*.csv")}  # a table is its .md, .tex and .csv
+    tables = sorted(p for p in reports.glob("*") if p.suffix in (".md", ".tex", ".csv") and p.stem in names)
+    assert tables
+    missing = [p.name for p in tables if not prov.search(p.read_text())]
+    assert not missing, f"committed tables without their command and commit: {missing}"
+    index = (reports / "README.md").read_text()
+    unlisted = [p.stem for p in tables if p.suffix == ".md" and f"({p.name})" not in index]
+    assert not unlisted, f"tables not in reports/README.md: {unlisted}"

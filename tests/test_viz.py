@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 import torch
 
 from drapebench.geometry.topology import get_topology
@@ -31,15 +32,34 @@ def test_recording_verifies(tmp_path):
     g = v[None] * torch.linspace(1.0, 1.1, T)[:, None, None]
     pen = torch.zeros(T, 4, dtype=torch.bool)
     pen[2, 0] = True
-    path = record_drape(tmp_path / "d.rrd", g - 0.01, f, g, topo, 30.0, penetrating=pen, reference=g + 0.01)
+    import pandas as pd
+
+    metrics = pd.DataFrame({"frame": range(2, T), "eps_c": [0.0, 1.0, 0.5, 0.0], "vertex_error_mm": [1.0, 2.0, 3.0, 4.0]})
+    path = record_drape(tmp_path / "d.rrd", g - 0.01, f, g, topo, 30.0, penetrating=pen, reference=g + 0.01, metrics=metrics)
     assert path.stat().st_size > 1000 and not list(tmp_path.glob(".*.tmp"))
     rerun = Path(sys.executable).parent / "rerun"
     env = dict(os.environ, CI="1")  # CI keeps the CLI from writing analytics settings into ~/.config
     v = subprocess.run([str(rerun), "rrd", "verify", str(path)], check=False, capture_output=True, text=True, timeout=60, env=env)
     assert v.returncode == 0, v.stderr
     stats = subprocess.run([str(rerun), "rrd", "stats", str(path)], check=False, capture_output=True, text=True, timeout=60, env=env).stdout
-    for component in ("Mesh3D:vertex_positions", "Mesh3D:vertex_colors", "Mesh3D:triangle_indices", "EntityBehavior:visible"):
+    for component in ("Mesh3D:vertex_positions", "Mesh3D:vertex_normals", "Mesh3D:vertex_colors", "Mesh3D:triangle_indices",
+                      "EntityBehavior:visible", "Scalars:scalars", "TextDocument:text", "EyeControls3D:position"):  # fmt: skip
         assert component in stats, component
+    printed = subprocess.run([str(rerun), "rrd", "print", "-v", str(path)], capture_output=True, text=True, timeout=60, env=env).stdout
+    assert "metrics/eps_c" in printed and "metrics/vertex_error_mm" in printed and "/legend" in printed
+
+
+def test_the_camera_sees_every_body_vertex_of_every_frame():
+    from drapebench.viz import camera
+
+    rng = np.random.default_rng(0)
+    body = rng.normal(size=(5, 200, 3)) * [0.2, 0.15, 0.5] + [0.0, 0.0, 1.0]
+    body[-1] += [1.5, 0.0, 0.0]  # the body walks 1.5 m to the side in the last frame
+    eye, target = camera(body, fov_y_deg=45.0)
+    d, axis = body.reshape(-1, 3) - eye, (target - eye) / np.linalg.norm(target - eye)
+    angle = np.degrees(np.arccos(d @ axis / np.linalg.norm(d, axis=1)))
+    assert angle.max() < 22.5 and angle.max() > 10  # inside the field of view, not lost in the distance
+    assert eye[1] < target[1] and eye[2] > target[2]  # from the front (-Y) and above
 
 
 def test_method_stages_are_recorded_as_their_own_entities(tmp_path):
@@ -57,3 +77,55 @@ def test_method_stages_are_recorded_as_their_own_entities(tmp_path):
     assert out.returncode == 0, out.stderr
     assert "stages/arap" in out.stdout and "stages/handles" in out.stdout
     assert "Points3D:positions" in out.stdout
+
+
+def _renderer_missing() -> str | None:
+    """Why a recording cannot be rendered here (None when it can): rerun's viewer needs a display
+    (xvfb-run) and a Vulkan driver (Mesa's software one, lavapipe, on a machine without a GPU)."""
+    import shutil
+
+    if shutil.which("xvfb-run") is None:
+        return "no xvfb-run (Debian: apt-get install xvfb mesa-vulkan-drivers)"
+    if not list(Path("/usr/share/vulkan/icd.d").glob("lvp_icd*.json")):
+        return "no software Vulkan driver (Debian: apt-get install mesa-vulkan-drivers)"
+    return None
+
+
+def render(rrd: Path, png: Path, size: str = "900x600") -> Path:
+    """Screenshot of the rerun viewer opening ``rrd``, as a user sees it, into ``png`` (headless)."""
+    rerun = Path(sys.executable).parent / "rerun"
+    env = dict(os.environ, CI="1", WGPU_BACKEND="vulkan")
+    cmd = ["xvfb-run", "-a", "-s", f"-screen 0 {size}x24", str(rerun), "--screenshot-to", str(png), "--window-size", size, str(rrd)]
+    subprocess.run(cmd, check=True, capture_output=True, timeout=300, env=env)
+    return png
+
+
+@pytest.mark.skipif(_renderer_missing() is not None, reason=f"cannot render a recording here: {_renderer_missing()}")
+def test_a_recording_renders_a_shaded_body_in_a_framed_view(tmp_path, body_lowres):
+    """The viewer shows the whole body, shaded (its vertex normals give it many tones, a silhouette has
+    one), and the garment's magenta (inside-the-body) vertices, beside the metric plots."""
+    import matplotlib.image as mpimg
+    import pandas as pd
+
+    T = 4
+    body = body_lowres.v_template[None].expand(T, -1, -1) + 0.0
+    b = body[0]
+    belly = b[(b[:, 2] - b[:, 2].mean()).abs() < 0.1]  # a 30 cm square 3 cm in front of the belly (the body faces -Y)
+    v, f = SQUARE
+    corner = torch.stack([belly[:, 0].mean() - 0.15, belly[:, 1].min() - 0.03, b[:, 2].mean() - 0.15])
+    g = (corner + 0.3 * v[:, [0, 2, 1]])[None].expand(T, -1, -1) + 0.0
+    pen = torch.ones(T, 4, dtype=torch.bool)
+    metrics = pd.DataFrame({"frame": range(T), "eps_e": [1.0, 2.0, 3.0, 2.0], "eps_c": [0.0, 1.0, 0.0, 0.5]})
+    path = record_drape(tmp_path / "d.rrd", body, body_lowres.faces, g, get_topology(v, f), 30.0, penetrating=pen, metrics=metrics)
+    img = mpimg.imread(render(path, tmp_path / "d.png"))[..., :3]
+    h, w = img.shape[:2]
+    view = (img[: int(h * 0.9), : int(w * 0.55)] * 255).astype(int)  # the 3D view is the left 3/5
+    r, gr, b = view[..., 0], view[..., 1], view[..., 2]
+    skin = (r > 90) & (r > gr + 8) & (gr > b + 5)
+    rows = torch.nonzero(torch.as_tensor(skin.any(1))).squeeze(1)
+    assert skin.mean() > 0.02, "no body in the 3D view"
+    assert rows[0] > 0.05 * view.shape[0] and rows[-1] < 0.98 * view.shape[0], "the body is cropped at the top or bottom"
+    _, counts = np.unique(r[skin] // 4, return_counts=True)
+    assert counts.max() < 0.5 * counts.sum(), "the body is one flat colour (a silhouette): no vertex normals"
+    magenta = (r > 150) & (b > 120) & (gr < 90)
+    assert magenta.sum() > 50, "the garment's inside-the-body vertices are not magenta"

@@ -1,4 +1,5 @@
-"""Render every garment kind on the canonical body, front and side, into one PNG.
+"""Render every garment of ``conf/garment`` (each kind and its variants) on the canonical body, front and
+side, into one PNG.
 
 ``python -m drapebench.garments.gallery --out docs/garments.png [--body anny]``
 """
@@ -18,8 +19,24 @@ def _shade(V, F, base, light):
     return np.clip(np.asarray(base)[None] * lam[:, None], 0, 1)
 
 
-def render_gallery(out: Path, body_name: str = "anny", kinds=None) -> Path:
-    """Draw each kind (front and side view) on the body; returns the written PNG path."""
+def garment_configs(names=None) -> dict[str, tuple[str, dict]]:
+    """name -> (kind, factory params) of the garment configs in ``conf/garment`` (all, or ``names``),
+    in the order of ``GARMENT_KINDS`` with each kind's variants after it."""
+    from omegaconf import OmegaConf
+
+    from drapebench.cache import PROJECT_ROOT
+    from drapebench.garments import GARMENT_KINDS
+
+    confs = {f.stem: OmegaConf.load(f) for f in sorted((PROJECT_ROOT / "conf" / "garment").glob("*.yaml"))}
+    unknown = sorted(set(names or []) - set(confs))
+    if unknown:
+        raise ValueError(f"no garment config {unknown}; configs: {', '.join(confs)}")
+    order = sorted(confs, key=lambda n: (GARMENT_KINDS.index(confs[n].kind), n != confs[n].kind, n))
+    return {n: (confs[n].kind, OmegaConf.to_container(confs[n].params)) for n in order if names is None or n in names}
+
+
+def render_gallery(out: Path, body_name: str = "anny", names=None) -> Path:
+    """Draw each garment config (front and side view) on the body; returns the written PNG path."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -28,18 +45,19 @@ def render_gallery(out: Path, body_name: str = "anny", kinds=None) -> Path:
 
     from drapebench.body import load_body
     from drapebench.cache import atomic_write
-    from drapebench.garments import GARMENT_KINDS, make_garment
+    from drapebench.garments import make_garment
 
     body = load_body(body_name)
-    kinds = list(kinds or GARMENT_KINDS)
+    garments = garment_configs(names)
     bV, bF = body.v_template.numpy(), body.faces.numpy()
     views = {"front": (0, -90), "side": (0, 0)}  # elevation, azimuth; the body faces -Y
-    fig = plt.figure(figsize=(2.2 * len(kinds), 2 * 2.6))
-    for col, kind in enumerate(kinds):
-        g = make_garment(kind, body)
+    n = len(garments)
+    fig = plt.figure(figsize=(1.7 * n, 2 * 2.6))
+    for col, (name, (kind, params)) in enumerate(garments.items()):
+        g = make_garment(kind, body, **params)
         gV, gF = g.vertices.numpy(), g.faces.numpy()
         for row, (vname, (elev, azim)) in enumerate(views.items()):
-            ax = fig.add_subplot(2, len(kinds), row * len(kinds) + col + 1, projection="3d")
+            ax = fig.add_subplot(2, n, row * n + col + 1, projection="3d")
             light = np.array([np.cos(np.radians(azim)), np.sin(np.radians(azim)), 0.4])
             light /= np.linalg.norm(light)
             V = np.concatenate([bV, gV])
@@ -51,10 +69,10 @@ def render_gallery(out: Path, body_name: str = "anny", kinds=None) -> Path:
             c, r = (lo + hi) / 2, (hi - lo).max() / 2
             ax.set_xlim(c[0] - r, c[0] + r), ax.set_ylim(c[1] - r, c[1] + r), ax.set_zlim(c[2] - r, c[2] + r)
             ax.view_init(elev=elev, azim=azim)
-            ax.set_box_aspect((1, 1, 1))
+            ax.set_box_aspect((1, 1, 1), zoom=1.6)
             ax.set_axis_off()
             if row == 0:
-                ax.set_title(f"{kind}\n{g.n_vertices} v", fontsize=9)
+                ax.set_title(f"{name}\n{g.n_vertices} vertices", fontsize=9)
     fig.subplots_adjust(0, 0, 1, 0.93, 0, 0)
     out = Path(out)
     with atomic_write(out, mode=None) as tmp:
@@ -67,9 +85,9 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--out", type=Path, default=Path("docs/garments.png"))
     parser.add_argument("--body", default="anny", help="body name (anny, anny_lowres) or SMPL-format file")
-    parser.add_argument("--kinds", nargs="*", help="subset of garment kinds")
+    parser.add_argument("--garments", nargs="*", help="subset of the garment configs (conf/garment)")
     args = parser.parse_args(argv)
-    print(render_gallery(args.out, args.body, args.kinds))
+    print(render_gallery(args.out, args.body, args.garments))
 
 
 if __name__ == "__main__":

@@ -29,6 +29,7 @@ after every frame. After a failure the whole simulation is run again with each o
 from __future__ import annotations
 
 import json
+import logging
 import re
 import time
 from dataclasses import dataclass, field
@@ -42,11 +43,13 @@ from drapebench.cache import Cache, body_key
 from drapebench.errors import DrapeFailed
 from drapebench.physics.material import Material
 from drapebench.progress import progress as progress_bar
+from drapebench.progress import progress_enabled
 from drapebench.reference.settings import SimSettings
 
 REFERENCES = Cache("reference", 1)  # bump when the simulation or the stored format changes
 MAX_START_INSIDE = 0.01  # a garment with more of its vertices inside the rest body is rejected
 MAX_STRETCH = 4.0  # an edge longer than this x its rest length counts as a blow-up
+log = logging.getLogger("drapebench")
 LEAVE_MARGIN = 0.10  # m: a garment centroid this far outside the body's bounding box has fallen off
 FEET_BAND = 0.15  # a garment centroid in this lowest fraction of the body's height has slid down to the feet
 
@@ -210,6 +213,9 @@ def _run(garment, seq, body, material: Material, settings: SimSettings, show_pro
     verts, transforms = _timeline(seq, body, S)
     _check_start(garment, start, torch.as_tensor(verts[0]), body)
 
+    name = f"pbs {settings.solver} {garment.name} {seq.name}"
+    log.info("%s: %d frames (%d settling) x %d substeps; warp loads its kernels now (the first time on a machine it "
+             "compiles them, about 100 s on a CPU)", name, S + T, S, settings.substeps)  # fmt: skip
     from drapebench.reference.scene import ClothScene, resolve_device  # imports newton/warp
 
     device = resolve_device(settings.device)
@@ -228,8 +234,8 @@ def _run(garment, seq, body, material: Material, settings: SimSettings, show_pro
     out = np.empty((T, garment.n_vertices, 3), dtype=np.float32)
     x_prev = scene.positions().astype(np.float64)
     max_speed = 0.0
-    bar = progress_bar(total=S + T, desc=f"pbs {settings.solver} {garment.name} {seq.name}", unit="frame") if show_progress \
-        else None  # fmt: skip
+    bar = progress_bar(total=S + T, desc=name, unit="frame") if show_progress else None
+    log_every = max(1, (S + T) // 10) if show_progress and not progress_enabled() else 0  # log lines where no bar shows
     try:
         for k in range(S + T):
             t0 = time.perf_counter()
@@ -265,6 +271,10 @@ def _run(garment, seq, body, material: Material, settings: SimSettings, show_pro
             timings["settle" if frame < 0 else "sequence"] += time.perf_counter() - t0
             if bar is not None:
                 bar.update(1)
+            if k == 0 or (log_every and (k + 1) % log_every == 0):
+                elapsed = time.perf_counter() - t_setup
+                log.info("%s: frame %d of %d, %.0f s%s", name, k + 1, S + T, elapsed,
+                         " (kernels loaded or compiled, scene built)" if k == 0 else "")  # fmt: skip
     finally:
         if bar is not None:
             bar.close()

@@ -86,3 +86,13 @@ def test_every_kind_resolution_and_shape_is_valid(kind, resolution, betas, body_
     shape[0] = betas
     g = make_garment(kind, body_full, betas=shape, resolution=resolution)  # raises with the report if invalid
     assert 500 < g.n_vertices < 20000
+
+
+def test_the_gallery_draws_every_garment_config():
+    from drapebench.cache import PROJECT_ROOT
+    from drapebench.garments.gallery import garment_configs
+
+    configs = garment_configs()
+    assert set(configs) == {f.stem for f in (PROJECT_ROOT / "conf" / "garment").glob("*.yaml")}
+    assert configs["skirt_flared"] == ("skirt", {"flare": 0.3}) and list(configs)[:2] == ["tshirt", "tank"]
+    assert list(configs).index("skirt") < list(configs).index("skirt_flared") < list(configs).index("dress")

@@ -122,3 +122,17 @@ def test_force_makes_the_pbs_method_simulate_again_once(scene, body_lowres, stub
         forced, again = m.drape(g, seq), m.drape(g, seq)
     assert len(stub) == 2, "force=true read the cached reference (or simulated it twice)"
     assert "cache_load" not in forced.timings_ms and "cache_load" in again.timings_ms
+
+
+def test_importing_the_simulator_prints_no_cuda_warning_without_cuda():
+    import subprocess
+    import sys
+
+    from drapebench.reference.scene import cuda_driver_present
+
+    if cuda_driver_present():
+        pytest.skip("this machine has a CUDA driver: warp's messages are kept there")
+    code = "import drapebench.reference.scene; import warp as wp; assert wp.get_cuda_device_count() == 0"
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr
+    assert "CUDA" not in p.stderr and "CUDA" not in p.stdout, p.stderr
