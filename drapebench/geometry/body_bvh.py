@@ -6,7 +6,7 @@ is an integer: the sum over the triangles a ray from the point crosses of sign(d
 part, -1 entering one; parts that overlap add up, as in the exact generalized winding number). A
 ray whose crossing lies within a relative 1e-5 of a triangle edge, grazes a triangle or starts on
 the surface is recast along the next of three fixed directions. Closest faces come from warp's
-BVH in float32; :mod:`drapebench.geometry.sdf` recomputes the closest point on them in float64.
+BVH in float32, the closest point on that face is computed in float64.
 
 Imports warp with its kernel cache in ``data/cache/warp`` (the kernel compiles once per machine).
 """
@@ -68,21 +68,64 @@ def _crossings(bvh: wp.uint64, points: wp.array(dtype=wp.vec3), faces: wp.array(
     return w, ambiguous
 
 
+@wp.func
+def _ratio(num: wp.float64, den: wp.float64):
+    return num / wp.max(den, wp.float64(1e-300))
+
+
+@wp.func
+def _closest_on_triangle(p: wp.vec3d, a: wp.vec3d, b: wp.vec3d, c: wp.vec3d):
+    """Closest point on triangle abc to p in float64 (Ericson, Real-Time Collision Detection 5.1.5)."""
+    zero = wp.float64(0.0)
+    ab = b - a
+    ac = c - a
+    ap = p - a
+    d1 = wp.dot(ab, ap)
+    d2 = wp.dot(ac, ap)
+    if d1 <= zero and d2 <= zero:
+        return a
+    bp = p - b
+    d3 = wp.dot(ab, bp)
+    d4 = wp.dot(ac, bp)
+    if d3 >= zero and d4 <= d3:
+        return b
+    vc = d1 * d4 - d3 * d2
+    if vc <= zero and d1 >= zero and d3 <= zero:
+        return a + ab * _ratio(d1, d1 - d3)
+    cp = p - c
+    d5 = wp.dot(ab, cp)
+    d6 = wp.dot(ac, cp)
+    if d6 >= zero and d5 <= d6:
+        return c
+    vb = d5 * d2 - d1 * d6
+    if vb <= zero and d2 >= zero and d6 <= zero:
+        return a + ac * _ratio(d2, d2 - d6)
+    va = d3 * d6 - d5 * d4
+    if va <= zero and d4 - d3 >= zero and d5 - d6 >= zero:
+        return b + (c - b) * _ratio(d4 - d3, (d4 - d3) + (d5 - d6))
+    den = va + vb + vc
+    return a + ab * _ratio(vb, den) + ac * _ratio(vc, den)
+
+
 @wp.kernel
 def _query(
     mesh: wp.uint64,
     points: wp.array(dtype=wp.vec3),
+    points64: wp.array(dtype=wp.vec3d),
     faces: wp.array(dtype=wp.int32),
-    queries: wp.array(dtype=wp.vec3),
+    queries: wp.array(dtype=wp.vec3d),
     directions: wp.array(dtype=wp.vec3),
     winding: wp.array(dtype=wp.int32),
     face: wp.array(dtype=wp.int32),
+    closest: wp.array(dtype=wp.vec3d),
 ):
     i = wp.tid()
-    p = queries[i]
+    q = queries[i]
+    p = wp.vec3(wp.float32(q[0]), wp.float32(q[1]), wp.float32(q[2]))
     hit = wp.mesh_query_point_no_sign(mesh, p, 1.0e6)
     f = hit.face
     face[i] = f
+    closest[i] = _closest_on_triangle(q, points64[faces[3 * f]], points64[faces[3 * f + 1]], points64[faces[3 * f + 2]])
     a = points[faces[3 * f]]  # first ray: along the closest face's outward normal, out of the body nearby
     w, ambiguous = _crossings(wp.mesh_get_bvh(mesh), points, faces, p, wp.normalize(wp.cross(points[faces[3 * f + 1]] - a, points[faces[3 * f + 2]] - a)))
     for k in range(directions.shape[0]):
@@ -99,6 +142,7 @@ class _Body:
     def __init__(self, faces: np.ndarray, vertices: torch.Tensor, device: str):
         self.device = device
         self.points = wp.array(vertices.numpy() if device == "cpu" else vertices, dtype=wp.vec3, device=device)
+        self.points64 = wp.zeros(len(vertices), dtype=wp.vec3d, device=device)
         self.faces = wp.array(faces.reshape(-1).astype(np.int32), dtype=wp.int32, device=device)
         self.mesh = wp.Mesh(points=self.points, indices=self.faces)
         d = np.asarray(_DIRECTIONS, np.float32)
@@ -118,27 +162,32 @@ def _body(faces: np.ndarray, vertices: torch.Tensor, device: str) -> _Body:
     return _BODIES[key]
 
 
-def query(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    """Winding number and closest face of points against the posed body, frame by frame.
+def query(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Winding number, closest face and closest point of points against the posed body, frame by frame.
 
     points (B,N,3) m; body_vertices (B,Vb,3); body_faces (F,3) long, a closed consistently oriented
-    mesh (:func:`is_closed`). Returns (winding (B,N) int32, face (B,N) long: index of a closest face;
-    float32 search, ties and near-ties resolved arbitrarily).
+    mesh (:func:`is_closed`). Returns winding (B,N) int32; face (B,N) long, a closest face (searched
+    in float32: of two faces within about 1e-7 m of the same distance either may come back); the
+    closest point on that face (B,N,3) float64, computed in float64.
     """
     faces = body_faces.detach().cpu().numpy().astype(np.int64)
     device = "cpu" if points.device.type == "cpu" else f"cuda:{points.device.index or 0}"
-    pts = points.detach().to(torch.float32).contiguous()
-    verts = body_vertices.detach().to(pts.device, torch.float32).contiguous()
-    body = _body(faces, verts[0], device)
+    pts = points.detach().to(torch.float64).contiguous()
+    verts = body_vertices.detach().to(pts.device, torch.float64).contiguous()
+    verts32 = verts.float()
+    body = _body(faces, verts32[0].cpu() if device == "cpu" else verts32[0], device)
     B, N = pts.shape[:2]
     winding = torch.empty(B, N, dtype=torch.int32, device=pts.device)
     face = torch.empty(B, N, dtype=torch.int32, device=pts.device)
+    closest = torch.empty(B, N, 3, dtype=torch.float64, device=pts.device)
     for b in range(B):
-        wp.copy(body.points, wp.from_torch(verts[b], dtype=wp.vec3))
+        wp.copy(body.points, wp.from_torch(verts32[b], dtype=wp.vec3))
+        wp.copy(body.points64, wp.from_torch(verts[b], dtype=wp.vec3d))
         body.mesh.refit()
-        wp.launch(_query, dim=N, device=device, inputs=[body.mesh.id, body.points, body.faces, wp.from_torch(pts[b], dtype=wp.vec3),
-                                                        body.directions, wp.from_torch(winding[b]), wp.from_torch(face[b])])  # fmt: skip
-    return winding, face.long()
+        wp.launch(_query, dim=N, device=device, inputs=[body.mesh.id, body.points, body.points64, body.faces, wp.from_torch(pts[b], dtype=wp.vec3d),
+                                                        body.directions, wp.from_torch(winding[b]), wp.from_torch(face[b]),
+                                                        wp.from_torch(closest[b], dtype=wp.vec3d)])  # fmt: skip
+    return winding, face.long(), closest
 
 
 @lru_cache(maxsize=8)

@@ -9,7 +9,7 @@ Two paths give the same result up to a stated tolerance:
 
 - default (closed, consistently oriented body meshes such as the baked bodies): a warp BVH refitted
   per frame (:mod:`drapebench.geometry.body_bvh`) finds a closest face in float32 and the integer
-  winding number by signed ray crossings; the closest point on that face is recomputed in float64.
+  winding number by signed ray crossings; the closest point on that face is computed in float64.
   Against the exact path: distances agree within 1e-6 m (a float32 near-tie between two faces), the
   inside test agrees except within about 1e-6 m of the surface, where the fast winding number of
   the exact path is itself approximate.
@@ -207,18 +207,17 @@ def closest_body_point(points: torch.Tensor, body_vertices: torch.Tensor, body_f
         raise ValueError(f"body_faces must be (F, 3) indices into the {body_vertices.shape[1]} body vertices")
     if exact or not body_bvh.is_closed(faces):
         return _closest_exact(points, body_vertices, faces)
-    winding, face = body_bvh.query(points, body_vertices, faces)
+    winding, face, cp = body_bvh.query(points, body_vertices, faces)
     with torch.no_grad():
-        pts, body = points.detach().double(), body_vertices.detach().double()
-        tri = torch.gather(body, 1, faces[face].reshape(len(pts), -1, 1).expand(-1, -1, 3).to(body.device))
-        tri = tri.reshape(*face.shape, 3, 3)
-        cp, _ = _closest_on_triangles(pts, tri[..., 0, :], tri[..., 1, :], tri[..., 2, :])
-        offset = pts - cp
+        offset = points.detach().double() - cp
         d = offset.norm(dim=-1)
         sign = torch.where(winding.to(d.device) > 0, -torch.ones_like(d), torch.ones_like(d))
-        fn = torch.cross(tri[..., 1, :] - tri[..., 0, :], tri[..., 2, :] - tri[..., 0, :], dim=-1)
-        fn = fn / fn.norm(dim=-1, keepdim=True).clamp_min(1e-30)  # on the surface: the face's outward normal
-        direction = torch.where((d > 1e-12)[..., None], offset / d.clamp_min(1e-12)[..., None] * sign[..., None], fn)
+        direction = offset / d.clamp_min(1e-12)[..., None] * sign[..., None]
+        on = d <= 1e-12
+        if on.any():  # on the surface: the closest face's outward normal
+            tri = body_vertices.detach().double()[torch.nonzero(on)[:, 0][:, None], faces[face[on]].to(body_vertices.device)]
+            fn = torch.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], dim=-1)
+            direction[on] = fn / fn.norm(dim=-1, keepdim=True).clamp_min(1e-30)
     dt = points.dtype
     return SurfacePoint((sign * d).to(dt), cp.to(dt), face.to(points.device), direction.to(dt))
 

@@ -114,8 +114,8 @@ def test_ray_crossings_count_overlapping_parts_and_open_meshes_take_the_exact_pa
     removed is not closed and is measured by the libigl path."""
     V, F = _two_overlapping_boxes()
     p = torch.tensor([[[0.15, 0.0, 0.0], [-0.15, 0.0, 0.0], [0.15, 0.0, 0.15], [0.5, 0.5, 0.5]]], dtype=torch.float64)
-    winding, face = body_bvh.query(p, torch.as_tensor(V)[None], torch.as_tensor(F))
-    assert winding.tolist() == [[2, 1, 1, 0]] and face.shape == (1, 4)
+    winding, face, closest = body_bvh.query(p, torch.as_tensor(V)[None], torch.as_tensor(F))
+    assert winding.tolist() == [[2, 1, 1, 0]] and face.shape == (1, 4) and closest.shape == (1, 4, 3)
     box = trimesh.creation.box((0.4, 0.3, 0.2))
     V1, F1 = torch.as_tensor(box.vertices)[None], torch.as_tensor(box.faces)
     flipped = F1.clone()
