@@ -3,9 +3,10 @@ number at them by signed ray crossings (the fast path of :mod:`drapebench.geomet
 
 The body mesh is closed and consistently oriented, so its winding number at a point off the surface
 is an integer: the sum over the triangles a ray from the point crosses of sign(dir . n) (+1 leaving a
-part, -1 entering one; parts that overlap add up, as in the exact generalized winding number). A
-ray whose crossing lies within a relative 1e-5 of a triangle edge, grazes a triangle or starts on
-the surface is recast along the next of three fixed directions. Closest faces come from warp's
+part, -1 entering one; parts that overlap add up, as in the exact generalized winding number). The
+ray leaves along the closest face's outward normal; one whose crossing lies within a relative 1e-5
+of a triangle edge, grazes a triangle or starts on the surface is recast along the next of three
+fixed directions. Closest faces come from warp's
 BVH in float32, the closest point on that face is computed in float64.
 
 Imports warp with its kernel cache in ``data/cache/warp`` (the kernel compiles once per machine).
