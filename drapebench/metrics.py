@@ -19,13 +19,16 @@ posed body of the sequence:
 The summary is the mean over the evaluated frames of every column, except ``penetration_mm`` (mean
 depth over all penetrating vertices of all frames); ``eps_e_std``, ``eps_a_std`` and ``eps_c_std``
 are the population std over frames of those metrics. The sequence's leading transition frames (rest
-pose -> motion) are left out by default. The signed distance searches, per frame, only the body faces
-that can hold a closest point (exact); the nearest-vertex queries (``eps_c_nn``, the collision
+pose -> motion) are left out by default. Frames are evaluated in chunks (``chunk_frames``), the body
+posed per chunk, so memory stays bounded on long sequences. The signed distance is the default path of
+:mod:`drapebench.geometry.sdf` (``exact=True``: its libigl path; the tolerance between them is stated
+there); the nearest-vertex queries (``eps_c_nn``, the collision
 energy) look at the body parts near the garment at rest (:func:`culled_body_vertices`).
 """
 
 from __future__ import annotations
 
+import numpy as np
 import pandas as pd
 import torch
 
@@ -58,6 +61,9 @@ def body_candidates(garment, body) -> torch.Tensor:
     return culled_body_vertices(garment.vertices, rest, body.weights)
 
 
+CHUNK_FRAMES = 256  # frames evaluated together: bounds evaluate()'s memory on long sequences
+
+
 def evaluate(
     garment,
     seq,
@@ -67,6 +73,8 @@ def evaluate(
     material=None,
     skip_transition: bool = True,
     energies: bool = True,
+    exact: bool = False,
+    chunk_frames: int = CHUNK_FRAMES,
 ) -> tuple[dict, pd.DataFrame]:
     """Metrics of a drape (definitions in the module docstring).
 
@@ -79,52 +87,77 @@ def evaluate(
         material: :class:`drapebench.physics.Material` for the energy breakdown (default Material()).
         skip_transition: leave the sequence's ``n_transition`` leading frames out.
         energies: add the per-frame ``energy_*`` columns.
+        exact: the libigl signed distance instead of the default warp one (same values within the
+            tolerance in :mod:`drapebench.geometry.sdf`).
+        chunk_frames: frames evaluated at once; the body is posed per chunk unless ``seq`` already
+            holds its posed geometry, so memory stays bounded as sequences grow.
     Returns:
         (summary dict of floats, per-frame DataFrame with a ``frame`` column and one column per metric).
     """
+    if chunk_frames < 1:
+        raise ValueError(f"chunk_frames must be >= 1, got {chunk_frames}")
     topo = garment.topology
     x = _check_positions(prediction, seq.n_frames, garment.n_vertices, "prediction").to(topo.device, topo.dtype)
     ref = None if reference is None else _check_positions(reference, seq.n_frames, garment.n_vertices, "reference")
     first = seq.n_transition if skip_transition and seq.n_transition < seq.n_frames else 0
-    frames = torch.arange(first, seq.n_frames)
-    xe = x[first:]
-    body_v = seq.vertices(body)[first:].to(x.device, x.dtype)
-    body_n = seq.vertex_normals(body)[first:].to(x.device, x.dtype)
     faces = body.faces.to(x.device)
     cand = body_candidates(garment, body).to(x.device)
+    jitter = _jitter(x, chunk_frames)[first:]
+    chunks, depth_sum, n_inside = [], [], []
     with torch.no_grad():
-        lengths = edge_lengths(xe, topo.edges)
-        d_len = (lengths - topo.rest_edge_lengths).abs()
-        rel_a = (face_areas(xe, topo.faces) - topo.face_areas).abs() / topo.face_areas
-        sd = signed_distance(xe, body_v, faces)
-        nn = nearest_body_vertex(xe, body_v, body_n, cand)
-        inside = sd < 0
-        n_in = inside.sum(-1)
-        depth = torch.where(inside, -sd, torch.zeros_like(sd)).sum(-1)
-        lap = torch.sparse.mm(topo.laplacian, xe.permute(1, 0, 2).reshape(topo.n_vertices, -1))
-        cols = {
-            "eps_e": (d_len / topo.rest_edge_lengths).mean(-1) * 100,
-            "eps_a": rel_a.mean(-1) * 100,
-            "eps_c": inside.to(x.dtype).mean(-1) * 100,
-            "eps_c_nn": (nn.distance < 0).to(x.dtype).mean(-1) * 100,
-            "edge_mm": d_len.mean(-1) * 1e3,
-            "smoothness": lap.reshape(topo.n_vertices, -1, 3).norm(dim=-1).mean(0),
-            "penetration_mm": depth / n_in.clamp_min(1) * 1e3,
-        }
-        acc = torch.full((seq.n_frames,), float("nan"), dtype=x.dtype, device=x.device)
-        if seq.n_frames >= 3:
-            acc[1:-1] = (x[2:] - 2 * x[1:-1] + x[:-2]).norm(dim=-1).mean(-1) * 1e3
-        cols["jitter"] = acc[first:]
-        if ref is not None:
-            cols["vertex_error_mm"] = (xe - ref[first:].to(x.device, x.dtype)).norm(dim=-1).mean(-1) * 1e3
-        if energies:
-            from drapebench.physics import Material, energy_terms
+        for start in range(first, seq.n_frames, chunk_frames):
+            stop = min(start + chunk_frames, seq.n_frames)
+            body_v, body_n = (t.to(x.device, x.dtype) for t in seq.posed_frames(body, start, stop))
+            cols, nn, depth, n_in = _frame_metrics(x[start:stop], topo, body_v, body_n, faces, cand, exact)
+            cols["jitter"] = jitter[start - first : stop - first]
+            if ref is not None:
+                cols["vertex_error_mm"] = (x[start:stop] - ref[start:stop].to(x.device, x.dtype)).norm(dim=-1).mean(-1) * 1e3
+            if energies:
+                from drapebench.physics import Material, energy_terms
 
-            terms = energy_terms(xe, topo, material or Material(), body_vertices=body_v, body_normals=body_n, candidates=cand)
-            cols.update({f"energy_{k}": v for k, v in terms.items()})
-    df = pd.DataFrame({"frame": frames.numpy(), **{k: v.detach().cpu().double().numpy() for k, v in cols.items()}})
+                terms = energy_terms(x[start:stop], topo, material or Material(), near=nn)
+                cols.update({f"energy_{k}": v for k, v in terms.items()})
+            chunks.append({k: v.detach().cpu().double() for k, v in cols.items()})
+            depth_sum.append(float(depth.double().sum()))
+            n_inside.append(int(n_in.sum()))
+    columns = {k: torch.cat([c[k] for c in chunks]).numpy() for k in chunks[0]}
+    df = pd.DataFrame({"frame": np.arange(first, seq.n_frames), **columns})
     summary = {k: float(df[k].mean()) for k in df.columns if k != "frame"}  # pandas skips the NaN jitter ends
     summary.update({f"{k}_std": float(df[k].std(ddof=0)) for k in ("eps_e", "eps_a", "eps_c")})
-    summary["penetration_mm"] = float(depth.sum() / n_in.sum().clamp_min(1) * 1e3)
+    summary["penetration_mm"] = sum(depth_sum) / max(sum(n_inside), 1) * 1e3
     summary["n_frames_evaluated"] = len(df)
     return summary, df
+
+
+def _jitter(x: torch.Tensor, chunk_frames: int) -> torch.Tensor:
+    """(T,) float64 mean |x[t+1] - 2 x[t] + x[t-1]| in mm, NaN at the first and last frame."""
+    acc = torch.full((x.shape[0],), float("nan"), dtype=torch.float64)
+    for start in range(1, x.shape[0] - 1, chunk_frames):
+        stop = min(start + chunk_frames, x.shape[0] - 1)
+        acc[start:stop] = ((x[start + 1 : stop + 1] - 2 * x[start:stop] + x[start - 1 : stop - 1]).norm(dim=-1).mean(-1) * 1e3).cpu().double()
+    return acc
+
+
+def _frame_metrics(xe, topo, body_v, body_n, faces, cand, exact: bool):
+    """Per-frame metric columns (dict of (B,) tensors) of positions xe (B,V,3) against the posed body
+    (B,Vb,3), the nearest-vertex query, and per frame the summed depth (m) and count of the
+    penetrating vertices."""
+    lengths = edge_lengths(xe, topo.edges)
+    d_len = (lengths - topo.rest_edge_lengths).abs()
+    rel_a = (face_areas(xe, topo.faces) - topo.face_areas).abs() / topo.face_areas
+    sd = signed_distance(xe, body_v, faces, exact=exact)
+    nn = nearest_body_vertex(xe, body_v, body_n, cand)
+    inside = sd < 0
+    n_in = inside.sum(-1)
+    depth = torch.where(inside, -sd, torch.zeros_like(sd)).sum(-1)
+    lap = torch.sparse.mm(topo.laplacian, xe.permute(1, 0, 2).reshape(topo.n_vertices, -1))
+    cols = {
+        "eps_e": (d_len / topo.rest_edge_lengths).mean(-1) * 100,
+        "eps_a": rel_a.mean(-1) * 100,
+        "eps_c": inside.to(xe.dtype).mean(-1) * 100,
+        "eps_c_nn": (nn.distance < 0).to(xe.dtype).mean(-1) * 100,
+        "edge_mm": d_len.mean(-1) * 1e3,
+        "smoothness": lap.reshape(topo.n_vertices, -1, 3).norm(dim=-1).mean(0),
+        "penetration_mm": depth / n_in.clamp_min(1) * 1e3,
+    }
+    return cols, nn, depth, n_in

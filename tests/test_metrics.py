@@ -85,6 +85,9 @@ def test_lbs_drape_on_a_real_body_matches_unculled_queries(body_lowres):
     x = lbs(g.vertices, body.weights[idx], seq.transforms(body))
     summary, frames = evaluate(g, seq, body, x)
     assert len(frames) == seq.n_frames - seq.n_transition == summary["n_frames_evaluated"]
+    chunked, chunked_frames = evaluate(g, seq, body, x, chunk_frames=2)  # chunks of 2 frames: the same table
+    assert list(chunked_frames.columns) == list(frames.columns) and np.allclose(chunked_frames, frames, equal_nan=True, rtol=1e-6)
+    assert np.allclose([chunked[k] for k in summary], list(summary.values()), equal_nan=True, rtol=1e-6)
     bv, bn = seq.vertices(body)[seq.n_transition :], seq.vertex_normals(body)[seq.n_transition :]
     xe = x[seq.n_transition :]
     sd = signed_distance(xe, bv, body.faces)

@@ -36,6 +36,9 @@ def matrix_to_axis_angle(R: torch.Tensor) -> torch.Tensor:
     return vec * scale.unsqueeze(-1)
 
 
+LBS_CHUNK = 256  # frames skinned at once by lbs()
+
+
 def lbs(points: torch.Tensor, weights: torch.Tensor, transforms: torch.Tensor) -> torch.Tensor:
     """Linear blend skinning of arbitrary points.
 
@@ -45,8 +48,15 @@ def lbs(points: torch.Tensor, weights: torch.Tensor, transforms: torch.Tensor) -
         transforms: (B, J, 4, 4) skinning transforms (global joint transform with the rest joint
             position removed, translation included), e.g. ``BodyOutput.transforms``.
     Returns:
-        (B, N, 3) skinned points.
+        (B, N, 3) skinned points. Frames are skinned in chunks of ``LBS_CHUNK`` (the per-point
+        blended transforms, 12 floats per point and frame, are never held for a whole long sequence).
     """
+    B = transforms.shape[0]
+    if B > LBS_CHUNK:
+        def part(t, a):  # the frames [a, a + LBS_CHUNK) of a per-frame input, a shared one as it is
+            return t[a : a + LBS_CHUNK] if t.dim() == 3 and t.shape[0] == B else t
+
+        return torch.cat([lbs(part(points, a), part(weights, a), transforms[a : a + LBS_CHUNK]) for a in range(0, B, LBS_CHUNK)])
     A = transforms[..., :3, :]  # (B,J,3,4)
     if weights.dim() == 2:
         T = torch.einsum("nj,bjkl->bnkl", weights, A)

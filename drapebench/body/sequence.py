@@ -102,6 +102,15 @@ class BodySequence:
             self._cache[key] = vertex_normals(self.vertices(body), body.faces)
         return self._cache[key]
 
+    def posed_frames(self, body: BodyModel, start: int, stop: int) -> tuple[torch.Tensor, torch.Tensor]:
+        """Posed vertices and unit normals (stop-start, V, 3) of frames [start, stop): slices of the
+        cached whole-sequence geometry when this sequence holds it, else posed for those frames only
+        and not cached (memory bounded by the chunk on long sequences)."""
+        if _key("out", body) in self._cache:
+            return self.vertices(body)[start:stop], self.vertex_normals(body)[start:stop]
+        part = self.slice(start, stop)
+        return part.vertices(body), part.vertex_normals(body)
+
     def joints(self, body: BodyModel) -> torch.Tensor:
         """Posed joint positions (T, J, 3)."""
         return self.body_output(body).joints

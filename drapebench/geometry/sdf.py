@@ -1,14 +1,23 @@
 """The one signed distance from points to a posed body: exact magnitude (distance to the closest
-point of the body triangle mesh), sign from the body's generalized winding number (inside any body
-part counts as inside, also where the posed body intersects itself).
+point of the body triangle mesh), sign from the body's winding number (inside any body part counts
+as inside, also where the posed body intersects itself).
 
-Rule: a point is inside when the winding number of the whole body mesh at it exceeds 0.5
-(:func:`inside_body`; libigl's fast winding number, Barill et al. 2018). Overlapping parts add up,
-so a point inside the thigh but closest to the belly reads as inside, and the open or doubled
-patches of the baked body (head, feet) do not flip the sign of points far from them. The closest
-point is searched among the body faces that can hold it: per frame, the distance r from every
-point to its nearest body vertex bounds its distance to the surface, so only faces whose bounding
-box comes within r of the points' bounding box are searched (the result equals the unculled one).
+Rule: a point is inside when the winding number of the whole body mesh at it exceeds 0.5. Overlapping
+parts add up, so a point inside the thigh but closest to the belly reads as inside.
+
+Two paths give the same result up to a stated tolerance:
+
+- default (closed, consistently oriented body meshes such as the baked bodies): a warp BVH refitted
+  per frame (:mod:`drapebench.geometry.body_bvh`) finds a closest face in float32 and the integer
+  winding number by signed ray crossings; the closest point on that face is computed in float64.
+  Against the exact path: distances agree within 1e-6 m (a float32 near-tie between two faces), the
+  inside test agrees except within about 1e-6 m of the surface, where the fast winding number of
+  the exact path is itself approximate.
+- ``exact=True`` (and any mesh that is not closed): libigl in float64. The sign is libigl's fast
+  winding number of the whole mesh (Barill et al. 2018); the closest point is searched among the
+  body faces that can hold it: per frame, the distance r from every point to its nearest body vertex
+  bounds its distance to the surface, so only faces whose bounding box comes within r of the
+  points' bounding box are searched (the result equals the unculled one).
 
 Differentiable use: :class:`SurfacePoint` carries the closest point and a unit ``normal`` with
 ``(x - point) . normal == distance``; ``((x - sp.point.detach()) * sp.normal.detach()).sum(-1)``
@@ -23,6 +32,7 @@ import numpy as np
 import torch
 from scipy.spatial import cKDTree
 
+from drapebench.geometry import body_bvh
 from drapebench.geometry.proximity import _as_batch
 
 
@@ -30,8 +40,8 @@ from drapebench.geometry.proximity import _as_batch
 class SurfacePoint:
     """distance (B,N) exact signed distance to the body surface (m, negative inside); point (B,N,3)
     the closest surface point; face (B,N) the index (into the full ``body_faces``) of its triangle;
-    normal (B,N,3) unit vector with ``(x - point) . normal = distance`` (the closest feature's
-    outward pseudonormal, flipped to the winding-number sign, where x lies on the surface)."""
+    normal (B,N,3) unit vector with ``(x - point) . normal = distance`` (where x lies on the surface:
+    the closest face's outward normal, or with ``exact=True`` the closest feature's pseudonormal)."""
 
     distance: torch.Tensor
     point: torch.Tensor
@@ -153,14 +163,18 @@ class _MeshIndex:
         return cls(faces, faces.cpu().numpy().astype(np.int64), face_edges.reshape(-1, 3), len(uniq))
 
 
-def inside_body(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: torch.Tensor) -> torch.Tensor:
+def inside_body(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: torch.Tensor, exact: bool = False) -> torch.Tensor:
     """(B,N) bool: points (B,N,3) m lie inside the posed body (body_vertices (B,Vb,3) or (1,Vb,3),
-    body_faces (F,3)): the whole mesh's generalized winding number exceeds 0.5 (libigl's fast
-    winding number, CPU float64). Inside any body part counts as inside."""
+    body_faces (F,3)): the whole mesh's winding number exceeds 0.5 (inside any body part counts as
+    inside). Default: signed ray crossings on a closed mesh; ``exact=True`` or an open mesh: libigl's
+    fast winding number, CPU float64 (module docstring)."""
+    points, body_vertices = _as_batch(points, body_vertices)
+    faces = torch.as_tensor(body_faces).long()
+    if not exact and body_bvh.is_closed(faces):
+        return (body_bvh.query(points, body_vertices, faces)[0] > 0).to(points.device)
     import igl
 
-    points, body_vertices = _as_batch(points, body_vertices)
-    F = torch.as_tensor(body_faces).detach().cpu().numpy().astype(np.int64)
+    F = faces.detach().cpu().numpy().astype(np.int64)
     pts, body = points.detach().cpu().double().numpy(), body_vertices.detach().cpu().double().numpy()
     w = np.stack([igl.fast_winding_number(body[b], F, pts[b]) for b in range(len(pts))])
     return torch.from_numpy(w > 0.5).to(points.device)
@@ -177,20 +191,40 @@ def _near_faces(points: torch.Tensor, body: torch.Tensor, faces: torch.Tensor) -
     return torch.nonzero(keep).squeeze(1)
 
 
-def closest_body_point(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: torch.Tensor) -> SurfacePoint:
-    """Exact closest point on the posed body triangle mesh and the signed distance (negative inside).
+def closest_body_point(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: torch.Tensor, exact: bool = False) -> SurfacePoint:
+    """Closest point on the posed body triangle mesh and the signed distance (negative inside).
 
     points (B,N,3) m; body_vertices (B,Vb,3) (or (1,Vb,3)); body_faces (F,3) long. The magnitude is
-    the exact distance to the closest point (float64 internally; per frame only the faces that can
-    hold it are searched, see the module docstring); the sign is :func:`inside_body`.
-    CPU: libigl AABB tree per frame; CUDA: chunked brute force in torch. Not differentiable (see the
-    module docstring for a differentiable use of the result). Returns :class:`SurfacePoint`.
+    the distance to the closest point (float64), the sign :func:`inside_body`. Default: warp BVH
+    per frame (CPU or CUDA); ``exact=True`` (or an open mesh): libigl AABB per frame on the CPU,
+    chunked brute force in torch on CUDA (module docstring: the tolerance between the two). Not
+    differentiable (see the module docstring for a differentiable use of the result). Returns
+    :class:`SurfacePoint`.
     """
     points, body_vertices = _as_batch(points, body_vertices)
     faces = torch.as_tensor(body_faces, device=body_vertices.device).long()
     if faces.dim() != 2 or faces.shape[1] != 3 or len(faces) == 0 or faces.max() >= body_vertices.shape[1] or faces.min() < 0:
         raise ValueError(f"body_faces must be (F, 3) indices into the {body_vertices.shape[1]} body vertices")
-    inside = inside_body(points, body_vertices, faces)
+    if exact or not body_bvh.is_closed(faces):
+        return _closest_exact(points, body_vertices, faces)
+    winding, face, cp = body_bvh.query(points, body_vertices, faces)
+    with torch.no_grad():
+        offset = points.detach().double() - cp
+        d = offset.norm(dim=-1)
+        sign = torch.where(winding.to(d.device) > 0, -torch.ones_like(d), torch.ones_like(d))
+        direction = offset / d.clamp_min(1e-12)[..., None] * sign[..., None]
+        on = d <= 1e-12
+        if on.any():  # on the surface: the closest face's outward normal
+            tri = body_vertices.detach().double()[torch.nonzero(on)[:, 0][:, None], faces[face[on]].to(body_vertices.device)]
+            fn = torch.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], dim=-1)
+            direction[on] = fn / fn.norm(dim=-1, keepdim=True).clamp_min(1e-30)
+    dt = points.dtype
+    return SurfacePoint((sign * d).to(dt), cp.to(dt), face.to(points.device), direction.to(dt))
+
+
+def _closest_exact(points: torch.Tensor, body_vertices: torch.Tensor, faces: torch.Tensor) -> SurfacePoint:
+    """:func:`closest_body_point` by libigl (CPU) or torch brute force (CUDA) over the culled faces."""
+    inside = inside_body(points, body_vertices, faces, exact=True)
     dist, point, face, normal = [], [], [], []
     with torch.no_grad():
         pts, body = points.detach().double(), body_vertices.detach().double()
@@ -209,11 +243,7 @@ def closest_body_point(points: torch.Tensor, body_vertices: torch.Tensor, body_f
     return SurfacePoint(torch.stack(dist).to(dt), torch.stack(point).to(dt), torch.stack(face), torch.stack(normal).to(dt))
 
 
-def signed_distance(
-    points: torch.Tensor,
-    body_vertices: torch.Tensor,
-    body_faces: torch.Tensor,
-) -> torch.Tensor:
-    """Exact signed distance (B,N) in metres from points (B,N,3) to the posed body mesh
-    (body_vertices (B,Vb,3), body_faces (F,3)), negative inside. See :func:`closest_body_point`."""
-    return closest_body_point(points, body_vertices, body_faces).distance
+def signed_distance(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: torch.Tensor, exact: bool = False) -> torch.Tensor:
+    """Signed distance (B,N) in metres from points (B,N,3) to the posed body mesh (body_vertices
+    (B,Vb,3), body_faces (F,3)), negative inside. See :func:`closest_body_point`."""
+    return closest_body_point(points, body_vertices, body_faces, exact).distance

@@ -171,3 +171,21 @@ def test_a_missing_user_body_names_the_file_it_looked_for():
 
     with pytest.raises(FileNotFoundError, match=f"{BODY_DIR / 'smpl.npz'} does not exist.*body.name=/path/to/model.npz"):
         load_body("smpl")
+
+
+@pytest.mark.parametrize("per_frame", [False, True])
+def test_lbs_in_chunks_equals_one_pass(monkeypatch, per_frame):
+    """lbs() skins long sequences in chunks of frames; shared and per-frame points/weights alike."""
+    import importlib
+
+    lbs_module = importlib.import_module("drapebench.body.lbs")  # the module (drapebench.body.lbs is also the function)
+
+    g = torch.Generator().manual_seed(0)
+    B, N, J = 11, 7, 4
+    transforms = torch.randn(B, J, 4, 4, generator=g, dtype=torch.float64)
+    points = torch.randn(B, N, 3, generator=g, dtype=torch.float64) if per_frame else torch.randn(N, 3, generator=g, dtype=torch.float64)
+    weights = torch.rand(B, N, J, generator=g, dtype=torch.float64) if per_frame else torch.rand(N, J, generator=g, dtype=torch.float64)
+    whole = lbs_module.lbs(points, weights, transforms)
+    monkeypatch.setattr(lbs_module, "LBS_CHUNK", 3)
+    chunked = lbs_module.lbs(points, weights, transforms)
+    assert chunked.shape == (B, N, 3) and torch.allclose(chunked, whole, rtol=0, atol=1e-12)

@@ -52,6 +52,16 @@ def test_posed_geometry_is_cached_and_consistent(body_lowres):
     assert torch.allclose(part.vertices(body_lowres), v[5:15], atol=1e-6)
 
 
+def test_posed_frames_pose_a_chunk_without_caching_the_whole_sequence(body_lowres):
+    seq = make_sequence("walk", 12, seed=0, transition=0)
+    v, n = seq.posed_frames(body_lowres, 4, 9)
+    assert not seq._cache  # nothing held for the whole sequence
+    whole_v, whole_n = seq.vertices(body_lowres), seq.vertex_normals(body_lowres)
+    assert torch.allclose(v, whole_v[4:9], atol=1e-6) and torch.allclose(n, whole_n[4:9], atol=1e-5)
+    cached_v, _ = seq.posed_frames(body_lowres, 4, 9)  # now slices of the cached geometry
+    assert cached_v.data_ptr() == whole_v[4:9].data_ptr()
+
+
 def test_cache_is_per_body_and_dtype(body_lowres):
     seq = make_sequence("squat", 10, seed=0, transition=0)
     v32 = seq.vertices(body_lowres)

@@ -6,6 +6,7 @@ import pytest
 import torch
 import trimesh
 
+from drapebench.geometry import body_bvh
 from drapebench.geometry.sdf import closest_body_point, inside_body, signed_distance
 
 
@@ -45,15 +46,16 @@ def _winding_inside(p, V, F):
     return np.concatenate([_winding(c, V, F) > 0.5 for c in np.array_split(p, max(1, len(p) * len(F) // 2_000_000))])
 
 
+@pytest.mark.parametrize("exact", [False, True])
 @pytest.mark.parametrize("shape", ["box", "torus"])
-def test_signed_distance_matches_brute_force(shape):
-    """Convex box (sharp edges and corners: the pseudonormal cases) and a non-convex torus."""
+def test_signed_distance_matches_brute_force(shape, exact):
+    """Convex box (sharp edges and corners: the pseudonormal cases) and a non-convex torus, both paths."""
     mesh = trimesh.creation.box((0.4, 0.3, 0.2)) if shape == "box" else trimesh.creation.torus(0.3, 0.1, 24, 12)
     V, F = np.asarray(mesh.vertices, float), np.asarray(mesh.faces)
     rng = np.random.default_rng(0)
     p = rng.uniform(V.min(0) - 0.1, V.max(0) + 0.1, size=(600, 3))
     p = np.concatenate([p, V + rng.normal(scale=1e-3, size=V.shape)])  # just in/out of vertices
-    sd = signed_distance(torch.as_tensor(p)[None], torch.as_tensor(V)[None], torch.as_tensor(F))[0].numpy()
+    sd = signed_distance(torch.as_tensor(p)[None], torch.as_tensor(V)[None], torch.as_tensor(F), exact=exact)[0].numpy()
     assert np.allclose(np.abs(sd), _brute_unsigned(p, V, F), atol=1e-12)
     inside = _winding_inside(p, V, F)
     assert 0 < inside.sum() < len(p) and np.array_equal(sd < 0, inside)
@@ -107,6 +109,22 @@ def _two_overlapping_boxes():
     return V, F
 
 
+def test_ray_crossings_count_overlapping_parts_and_open_meshes_take_the_exact_path():
+    """The winding number is 2 inside both boxes, 1 inside one, 0 outside; a box with a face
+    removed is not closed and is measured by the libigl path."""
+    V, F = _two_overlapping_boxes()
+    p = torch.tensor([[[0.15, 0.0, 0.0], [-0.15, 0.0, 0.0], [0.15, 0.0, 0.15], [0.5, 0.5, 0.5]]], dtype=torch.float64)
+    winding, face, closest = body_bvh.query(p, torch.as_tensor(V)[None], torch.as_tensor(F))
+    assert winding.tolist() == [[2, 1, 1, 0]] and face.shape == (1, 4) and closest.shape == (1, 4, 3)
+    box = trimesh.creation.box((0.4, 0.3, 0.2))
+    V1, F1 = torch.as_tensor(box.vertices)[None], torch.as_tensor(box.faces)
+    flipped = F1.clone()
+    flipped[0] = flipped[0, [0, 2, 1]]  # closed but not consistently oriented
+    assert body_bvh.is_closed(F1) and not body_bvh.is_closed(F1[1:]) and not body_bvh.is_closed(flipped)
+    q = torch.rand(1, 200, 3, dtype=torch.float64) * 0.6 - 0.3
+    assert torch.equal(signed_distance(q, V1, F1[1:]), signed_distance(q, V1, F1[1:], exact=True))
+
+
 def test_inside_any_part_counts_as_inside_where_parts_overlap():
     """A point inside box A whose nearest surface is a face of box B (inside A, outside B near it)
     is inside; the closest-feature pseudonormal would read it as outside."""
@@ -149,7 +167,8 @@ def _squat_points(body, n_frames=20):
     return bv, torch.cat([bv - 0.005 * bn, near], 1)
 
 
-def test_inside_matches_an_exact_winding_number_where_the_body_intersects_itself(body_lowres):
+@pytest.mark.parametrize("exact", [False, True])
+def test_inside_matches_an_exact_winding_number_where_the_body_intersects_itself(body_lowres, exact):
     body = body_lowres
     bv, x = _squat_points(body, 30)
     F = body.faces.numpy()
@@ -157,10 +176,10 @@ def test_inside_matches_an_exact_winding_number_where_the_body_intersects_itself
     V, p = bv[frame].numpy(), x[frame].numpy()
     w = np.concatenate([_winding(c, V, F) for c in np.array_split(p, 40)])
     assert (w > 1.5).sum() >= 10  # the posed body overlaps itself here
-    inside = inside_body(x[frame][None], bv[frame][None], body.faces)[0].numpy()
+    inside = inside_body(x[frame][None], bv[frame][None], body.faces, exact=exact)[0].numpy()
     clear = np.abs(w - 0.5) > 0.05  # the fast winding number's approximation band
     assert clear.mean() > 0.99 and np.array_equal(inside[clear], w[clear] > 0.5)
-    sd = signed_distance(x[frame][None], bv[frame][None], body.faces)[0].numpy()
+    sd = signed_distance(x[frame][None], bv[frame][None], body.faces, exact=exact)[0].numpy()
     assert np.array_equal((sd < 0)[clear], w[clear] > 0.5)
     assert np.allclose(np.abs(sd), np.sqrt(igl.point_mesh_squared_distance(p, V, F.astype(np.int64))[0]), atol=1e-9)
 

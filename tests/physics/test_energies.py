@@ -226,6 +226,12 @@ def test_energy_terms_has_what_the_scene_needs(sheet):
     assert set(t) == {"stvk", "bending", "gravity", "inertia", "collision"}
     with pytest.raises(ValueError, match="x_prev and v_prev"):
         energy_terms(x, topo, MAT, x_prev=x)
+    from drapebench.geometry.proximity import nearest_body_vertex
+
+    near = nearest_body_vertex(x, body, normals)  # a query the caller already has is used as it is
+    assert torch.equal(energy_terms(x, topo, MAT, near=near)["collision"], t["collision"])
+    near.normal = -near.normal
+    assert not torch.equal(energy_terms(x, topo, MAT, near=near)["collision"], t["collision"])
 
 
 def test_hinge_collision_is_zero_outside():

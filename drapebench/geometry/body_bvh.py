@@ -1,0 +1,210 @@
+"""A posed body as a warp BVH, refitted per frame: the closest face of points and the body's winding
+number at them by signed ray crossings (the fast path of :mod:`drapebench.geometry.sdf`).
+
+The body mesh is closed and consistently oriented, so its winding number at a point off the surface
+is an integer: the sum over the triangles a ray from the point crosses of sign(dir . n) (+1 leaving a
+part, -1 entering one; parts that overlap add up, as in the exact generalized winding number). The
+ray leaves along the closest face's outward normal; one whose crossing lies within a relative 1e-5
+of a triangle edge, grazes a triangle or starts on the surface is recast along the next of three
+fixed directions. Closest faces come from warp's
+BVH in float32, the closest point on that face is computed in float64.
+
+Imports warp with its kernel cache in ``data/cache/warp`` (the kernel compiles once per machine).
+"""
+
+from __future__ import annotations
+
+import os
+from functools import lru_cache
+
+import numpy as np
+import torch
+
+from drapebench.cache import cache_dir
+
+os.environ.setdefault("WARP_CACHE_PATH", str(cache_dir("warp")))
+
+import warp as wp  # noqa: E402
+
+wp.config.quiet = True
+wp.config.log_level = wp.LOG_WARNING
+if wp.config.kernel_cache_dir is None:  # warp imported elsewhere first: still keep its cache in the project
+    wp.config.kernel_cache_dir = os.environ["WARP_CACHE_PATH"]
+
+_EDGE_TOL = wp.constant(1e-5)  # barycentric margin below which a crossing is too close to an edge to count
+_DIRECTIONS = ((0.5377, 0.8301, -0.1472), (-0.7071, 0.1183, 0.6971), (0.2213, -0.5619, -0.7972))
+
+
+@wp.func
+def _crossings(bvh: wp.uint64, points: wp.array(dtype=wp.vec3), faces: wp.array(dtype=wp.int32), p: wp.vec3, d: wp.vec3):
+    """Signed crossings of the ray p + t d (t >= 0) with the triangles, and 1 when one is ambiguous."""
+    w = int(0)
+    ambiguous = int(0)
+    query = wp.bvh_query_ray(bvh, p, d)
+    f = int(0)
+    while wp.bvh_query_next(query, f):
+        a = points[faces[3 * f]]
+        e1 = points[faces[3 * f + 1]] - a
+        e2 = points[faces[3 * f + 2]] - a
+        pv = wp.cross(d, e2)
+        det = wp.dot(e1, pv)  # = -d . n with n = e1 x e2 the outward normal
+        if wp.abs(det) <= 1e-5 * wp.length(wp.cross(e1, e2)):  # the ray grazes the triangle's plane
+            ambiguous = 1
+            continue
+        inv = 1.0 / det
+        s = p - a
+        u = wp.dot(s, pv) * inv
+        qv = wp.cross(s, e1)
+        v = wp.dot(d, qv) * inv
+        t = wp.dot(e2, qv) * inv
+        margin = wp.min(wp.min(u, v), 1.0 - u - v)
+        if margin < -_EDGE_TOL or t < -1e-7:
+            continue
+        if margin <= _EDGE_TOL or t <= 1e-7:
+            ambiguous = 1
+        elif det < 0.0:  # leaving through the outward side
+            w = w + 1
+        else:
+            w = w - 1
+    return w, ambiguous
+
+
+@wp.func
+def _ratio(num: wp.float64, den: wp.float64):
+    return num / wp.max(den, wp.float64(1e-300))
+
+
+@wp.func
+def _closest_on_triangle(p: wp.vec3d, a: wp.vec3d, b: wp.vec3d, c: wp.vec3d):
+    """Closest point on triangle abc to p in float64 (Ericson, Real-Time Collision Detection 5.1.5)."""
+    zero = wp.float64(0.0)
+    ab = b - a
+    ac = c - a
+    ap = p - a
+    d1 = wp.dot(ab, ap)
+    d2 = wp.dot(ac, ap)
+    if d1 <= zero and d2 <= zero:
+        return a
+    bp = p - b
+    d3 = wp.dot(ab, bp)
+    d4 = wp.dot(ac, bp)
+    if d3 >= zero and d4 <= d3:
+        return b
+    vc = d1 * d4 - d3 * d2
+    if vc <= zero and d1 >= zero and d3 <= zero:
+        return a + ab * _ratio(d1, d1 - d3)
+    cp = p - c
+    d5 = wp.dot(ab, cp)
+    d6 = wp.dot(ac, cp)
+    if d6 >= zero and d5 <= d6:
+        return c
+    vb = d5 * d2 - d1 * d6
+    if vb <= zero and d2 >= zero and d6 <= zero:
+        return a + ac * _ratio(d2, d2 - d6)
+    va = d3 * d6 - d5 * d4
+    if va <= zero and d4 - d3 >= zero and d5 - d6 >= zero:
+        return b + (c - b) * _ratio(d4 - d3, (d4 - d3) + (d5 - d6))
+    den = va + vb + vc
+    return a + ab * _ratio(vb, den) + ac * _ratio(vc, den)
+
+
+@wp.kernel
+def _query(
+    mesh: wp.uint64,
+    points: wp.array(dtype=wp.vec3),
+    points64: wp.array(dtype=wp.vec3d),
+    faces: wp.array(dtype=wp.int32),
+    queries: wp.array(dtype=wp.vec3d),
+    directions: wp.array(dtype=wp.vec3),
+    winding: wp.array(dtype=wp.int32),
+    face: wp.array(dtype=wp.int32),
+    closest: wp.array(dtype=wp.vec3d),
+):
+    i = wp.tid()
+    q = queries[i]
+    p = wp.vec3(wp.float32(q[0]), wp.float32(q[1]), wp.float32(q[2]))
+    hit = wp.mesh_query_point_no_sign(mesh, p, 1.0e6)
+    f = hit.face
+    face[i] = f
+    closest[i] = _closest_on_triangle(q, points64[faces[3 * f]], points64[faces[3 * f + 1]], points64[faces[3 * f + 2]])
+    a = points[faces[3 * f]]  # first ray: along the closest face's outward normal, out of the body nearby
+    w, ambiguous = _crossings(wp.mesh_get_bvh(mesh), points, faces, p, wp.normalize(wp.cross(points[faces[3 * f + 1]] - a, points[faces[3 * f + 2]] - a)))
+    for k in range(directions.shape[0]):
+        if ambiguous == 0:
+            break
+        w, ambiguous = _crossings(wp.mesh_get_bvh(mesh), points, faces, p, directions[k])
+    winding[i] = w
+
+
+class _Body:
+    """A warp mesh of one body topology on one device (BVH built on the first frame it is given,
+    refitted to every later frame)."""
+
+    def __init__(self, faces: np.ndarray, vertices: torch.Tensor, device: str):
+        self.device = device
+        self.points = wp.array(vertices.numpy() if device == "cpu" else vertices, dtype=wp.vec3, device=device)
+        self.points64 = wp.zeros(len(vertices), dtype=wp.vec3d, device=device)
+        self.faces = wp.array(faces.reshape(-1).astype(np.int32), dtype=wp.int32, device=device)
+        self.mesh = wp.Mesh(points=self.points, indices=self.faces)
+        d = np.asarray(_DIRECTIONS, np.float32)
+        self.directions = wp.array(d / np.linalg.norm(d, axis=1, keepdims=True), dtype=wp.vec3, device=device)
+
+
+_BODIES: dict = {}
+
+
+def _body(faces: np.ndarray, vertices: torch.Tensor, device: str) -> _Body:
+    """The cached warp mesh of this topology (faces (F,3) int64) on this device, built on ``vertices``."""
+    key = (faces.tobytes(), vertices.shape[0], device)
+    if key not in _BODIES:
+        if len(_BODIES) >= 8:
+            _BODIES.pop(next(iter(_BODIES)))
+        _BODIES[key] = _Body(faces, vertices, device)
+    return _BODIES[key]
+
+
+def query(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Winding number, closest face and closest point of points against the posed body, frame by frame.
+
+    points (B,N,3) m; body_vertices (B,Vb,3); body_faces (F,3) long, a closed consistently oriented
+    mesh (:func:`is_closed`). Returns winding (B,N) int32; face (B,N) long, a closest face (searched
+    in float32: of two faces within about 1e-7 m of the same distance either may come back); the
+    closest point on that face (B,N,3) float64, computed in float64.
+    """
+    faces = body_faces.detach().cpu().numpy().astype(np.int64)
+    device = "cpu" if points.device.type == "cpu" else f"cuda:{points.device.index or 0}"
+    pts = points.detach().to(torch.float64).contiguous()
+    verts = body_vertices.detach().to(pts.device, torch.float64).contiguous()
+    verts32 = verts.float()
+    body = _body(faces, verts32[0].cpu() if device == "cpu" else verts32[0], device)
+    B, N = pts.shape[:2]
+    winding = torch.empty(B, N, dtype=torch.int32, device=pts.device)
+    face = torch.empty(B, N, dtype=torch.int32, device=pts.device)
+    closest = torch.empty(B, N, 3, dtype=torch.float64, device=pts.device)
+    for b in range(B):
+        wp.copy(body.points, wp.from_torch(verts32[b], dtype=wp.vec3))
+        wp.copy(body.points64, wp.from_torch(verts[b], dtype=wp.vec3d))
+        body.mesh.refit()
+        wp.launch(_query, dim=N, device=device, inputs=[body.mesh.id, body.points, body.points64, body.faces, wp.from_torch(pts[b], dtype=wp.vec3d),
+                                                        body.directions, wp.from_torch(winding[b]), wp.from_torch(face[b]),
+                                                        wp.from_torch(closest[b], dtype=wp.vec3d)])  # fmt: skip
+    return winding, face.long(), closest
+
+
+@lru_cache(maxsize=8)
+def _closed(faces_bytes: bytes) -> bool:
+    F = np.frombuffer(faces_bytes, dtype=np.int64).reshape(-1, 3)
+    directed = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    key = directed[:, 0] * (int(F.max()) + 1) + directed[:, 1]
+    reverse = directed[:, 1] * (int(F.max()) + 1) + directed[:, 0]
+    key_sorted = np.sort(key)
+    unique = len(np.unique(key)) == len(key)
+    i = np.searchsorted(key_sorted, reverse)
+    paired = (i < len(key_sorted)) & (key_sorted[np.minimum(i, len(key_sorted) - 1)] == reverse)
+    return bool(unique and paired.all())
+
+
+def is_closed(body_faces: torch.Tensor) -> bool:
+    """True when every directed edge of body_faces (F,3) appears once and its reverse once: a closed,
+    consistently oriented mesh, whose winding number :func:`query` computes exactly."""
+    return _closed(torch.as_tensor(body_faces).detach().cpu().numpy().astype(np.int64).tobytes())
