@@ -194,6 +194,7 @@ def _evaluation(monkeypatch, body):
 
 class _Method:
     generic = False
+    needs_reference = False
 
     def __init__(self, calls):
         self.calls, self.w = calls, None

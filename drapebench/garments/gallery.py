@@ -20,7 +20,7 @@ def _shade(V, F, base, light):
 
 
 def garment_configs(names=None) -> dict[str, tuple[str, dict]]:
-    """name -> (kind, factory params) of the garment configs in ``conf/garment`` (all, or ``names``),
+    """name -> (kind, factory params) of the garment kind configs in ``conf/garment`` (all, or ``names``),
     in the order of ``GARMENT_KINDS`` with each kind's variants after it."""
     from omegaconf import OmegaConf
 
@@ -28,6 +28,7 @@ def garment_configs(names=None) -> dict[str, tuple[str, dict]]:
     from drapebench.garments import GARMENT_KINDS
 
     confs = {f.stem: OmegaConf.load(f) for f in sorted((PROJECT_ROOT / "conf" / "garment").glob("*.yaml"))}
+    confs = {n: c for n, c in confs.items() if c.kind in GARMENT_KINDS}  # garment=obj is a user's file, not a kind
     unknown = sorted(set(names or []) - set(confs))
     if unknown:
         raise ValueError(f"no garment config {unknown}; configs: {', '.join(confs)}")
