@@ -28,7 +28,7 @@ import yaml
 
 from drapebench.body.dataset import HELD_OUT_MOTIONS, DatasetSpec, spec_sequences
 from drapebench.body.sequence import DEFAULT_TRANSITION
-from drapebench.cache import PROJECT_ROOT, Cache, cache_dir, content_hash
+from drapebench.cache import PROJECT_ROOT, Cache
 from drapebench.data.references import References, read_drape
 from drapebench.progress import progress as progress_bar
 
@@ -185,7 +185,6 @@ def build_reference_set(garment, body, material, spec: ReferenceSetSpec, n_jobs:
     todo = [seq for seq in seqs if seq.name not in failed]
     n_jobs = int(n_jobs or spec.n_jobs)
     threads = max(1, (os.cpu_count() or 1) // n_jobs) if n_jobs > 1 else None
-    os.environ.setdefault("WARP_CACHE_PATH", str(cache_dir("warp")))  # workers share the compiled warp kernels
     done: dict[str, dict] = {}
 
     def save() -> None:

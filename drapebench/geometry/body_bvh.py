@@ -9,27 +9,17 @@ of a triangle edge, grazes a triangle or starts on the surface is recast along t
 fixed directions. Closest faces come from warp's
 BVH in float32, the closest point on that face is computed in float64.
 
-Imports warp with its kernel cache in ``data/cache/warp`` (the kernel compiles once per machine).
+warp is set up by :mod:`drapebench.warp_env` (the kernel compiles once per machine).
 """
 
 from __future__ import annotations
 
-import os
 from functools import lru_cache
 
 import numpy as np
 import torch
 
-from drapebench.cache import cache_dir
-
-os.environ.setdefault("WARP_CACHE_PATH", str(cache_dir("warp")))
-
-import warp as wp  # noqa: E402
-
-wp.config.quiet = True
-wp.config.log_level = wp.LOG_WARNING
-if wp.config.kernel_cache_dir is None:  # warp imported elsewhere first: still keep its cache in the project
-    wp.config.kernel_cache_dir = os.environ["WARP_CACHE_PATH"]
+from drapebench.warp_env import wp  # noqa: E402
 
 _EDGE_TOL = wp.constant(1e-5)  # barycentric margin below which a crossing is too close to an edge to count
 _DIRECTIONS = ((0.5377, 0.8301, -0.1472), (-0.7071, 0.1183, 0.6971), (0.2213, -0.5619, -0.7972))

@@ -1,65 +1,18 @@
 """A Newton scene: one garment (VBD or Style3D cloth) against an animated body-mesh collider.
 
-Importing this module imports warp with its kernel cache in ``data/cache/warp`` (compiled once per
-machine, about 50 s the first time on CPU).
+Importing this module sets warp up through :mod:`drapebench.warp_env` (kernels compiled once per machine,
+about 50 s the first time on CPU).
 """
 
 from __future__ import annotations
 
-import os
-import sys
-
+import newton
 import numpy as np
 
-from drapebench.cache import cache_dir
 from drapebench.physics.material import Material
 from drapebench.reference.materials import panel_coordinates, style3d_parameters, vbd_edge_stiffness, vbd_parameters
 from drapebench.reference.settings import SimSettings
-
-os.environ.setdefault("WARP_CACHE_PATH", str(cache_dir("warp")))
-
-import newton  # noqa: E402
-import warp as wp  # noqa: E402
-
-wp.config.quiet = True
-wp.config.log_level = wp.LOG_WARNING  # no per-module load/compile timing lines in run logs
-if wp.config.kernel_cache_dir is None:  # warp imported elsewhere first: still keep its cache in the project
-    wp.config.kernel_cache_dir = os.environ["WARP_CACHE_PATH"]
-
-
-def cuda_driver_present() -> bool:
-    """True when the NVIDIA driver library loads (what warp's native init looks for)."""
-    import ctypes
-
-    names = ("nvcuda.dll",) if sys.platform == "win32" else ("libcuda.so", "libcuda.so.1")
-    for name in names:
-        try:
-            ctypes.CDLL(name)
-            return True
-        except OSError:
-            continue
-    return False
-
-
-def init_warp() -> None:
-    """``wp.init()``. Without a CUDA driver (a CPU-only machine) warp's native library prints a "could not
-    find or load the NVIDIA CUDA driver" warning to stderr; it says nothing useful there, so it is dropped
-    (only then: with a driver every message of warp's init is kept)."""
-    if cuda_driver_present():
-        wp.init()
-        return
-    sys.stderr.flush()
-    saved = os.dup(2)
-    try:
-        with open(os.devnull, "w") as null:
-            os.dup2(null.fileno(), 2)
-            wp.init()
-    finally:
-        os.dup2(saved, 2)
-        os.close(saved)
-
-
-init_warp()
+from drapebench.warp_env import wp
 
 
 @wp.kernel

@@ -124,15 +124,20 @@ def test_force_makes_the_pbs_method_simulate_again_once(scene, body_lowres, stub
     assert "cache_load" not in forced.timings_ms and "cache_load" in again.timings_ms
 
 
-def test_importing_the_simulator_prints_no_cuda_warning_without_cuda():
+SIGNED_DISTANCE = ("import torch; from drapebench.body import load_body; from drapebench.geometry.sdf import signed_distance; "
+                   "b = load_body('anny_lowres'); signed_distance(torch.zeros(1, 2, 3), b.shaped()[0], b.faces)")  # fmt: skip
+
+
+@pytest.mark.parametrize("code", ["import drapebench.reference.scene", SIGNED_DISTANCE], ids=["simulator", "metrics"])
+def test_warp_prints_no_cuda_warning_without_cuda(code):
     import subprocess
     import sys
 
-    from drapebench.reference.scene import cuda_driver_present
+    from drapebench.warp_env import cuda_driver_present
 
     if cuda_driver_present():
         pytest.skip("this machine has a CUDA driver: warp's messages are kept there")
-    code = "import drapebench.reference.scene; import warp as wp; assert wp.get_cuda_device_count() == 0"
+    code += "; import warp as wp; assert wp.get_cuda_device_count() == 0"
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stderr
     assert "CUDA" not in p.stderr and "CUDA" not in p.stdout, p.stderr
