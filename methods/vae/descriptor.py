@@ -36,11 +36,11 @@ def pose_rotations(poses: torch.Tensor) -> torch.Tensor:
     return axis_angle_to_matrix(poses[:, 1:])
 
 
-def motion_descriptor(seq, pose_code=None, n_betas: int = 10) -> torch.Tensor:
-    """Per-frame regressor input (T, 3P + 12 + n_betas) of a body sequence: [phi, dphi, d2phi, dH, d2H, dK, d2K,
+def motion_descriptor(seq, betas: torch.Tensor, pose_code=None) -> torch.Tensor:
+    """Per-frame regressor input (T, 3P + 12 + S) of a body sequence: [phi, dphi, d2phi, dH, d2H, dK, d2K,
     beta] with phi the pose code ``pose_code(rotations (T, J-1, 3, 3)) -> (T, P)`` (None: the non-root joints'
     axis-angles, P = 3 (J-1)), H the root translation (m), K the root rotation's Euler angles (rad) and beta
-    the sequence's body shape zero-padded to ``n_betas``."""
+    the sequence's body shape ``betas`` (S,) (``BodyModel.full_betas(seq.betas)``)."""
     poses = seq.poses.float()
     phi = poses[:, 1:].flatten(1) if pose_code is None else pose_code(pose_rotations(poses))
     H = seq.trans.float()
@@ -50,7 +50,4 @@ def motion_descriptor(seq, pose_code=None, n_betas: int = 10) -> torch.Tensor:
     for x in (H, K):
         v = derivative(x, fps)
         parts += [v, derivative(v, fps)]
-    if len(seq.betas) > n_betas:
-        raise ValueError(f"{seq.name}: {len(seq.betas)} betas, the body has {n_betas}")
-    betas = torch.nn.functional.pad(seq.betas.float(), (0, n_betas - len(seq.betas)))[None].expand(len(poses), -1)
-    return torch.cat([*parts, betas], -1)
+    return torch.cat([*parts, betas.float()[None].expand(len(poses), -1)], -1)

@@ -15,7 +15,8 @@ def unposed(diffused, X: torch.Tensor, betas: torch.Tensor) -> torch.Tensor:
     return X + diffused.shape_offsets(X, betas[:, None, :].expand(-1, X.shape[1], -1))
 
 
-def garment_model(diffused, X: torch.Tensor, betas: torch.Tensor, transforms: torch.Tensor) -> torch.Tensor:
+def garment_model(diffused, X: torch.Tensor, betas: torch.Tensor, transforms: torch.Tensor, rest: torch.Tensor | None = None) -> torch.Tensor:
     """M_G of Eq. 7: canonical vertices X (B, V, 3) m posed by the body's skinning transforms (B, J, 4, 4)
-    (translation included) for body shapes betas (B, S) -> (B, V, 3) m. Differentiable in X."""
-    return lbs(unposed(diffused, X, betas), diffused.weights(X), transforms)
+    (translation included) for body shapes betas (B, S) -> (B, V, 3) m; ``rest`` is T_G when already
+    computed (:func:`unposed`). Differentiable in X."""
+    return lbs(unposed(diffused, X, betas) if rest is None else rest, diffused.weights(X), transforms)

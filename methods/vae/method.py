@@ -66,16 +66,11 @@ class VAEModel(DrapingMethod):
     def _canonical_template(self, garment) -> torch.Tensor:
         """The garment template (V, 3) m moved to the mean body shape (the canonical space's)."""
         X = garment.vertices.to(self.body.dtype)
-        betas = garment.betas.to(X.dtype)[: self.body.n_betas]
+        betas = self.body.full_betas(garment.betas)
         if bool((betas != 0).any()):
             with torch.no_grad():
                 X = X - self.diffused.shape_offsets(X, betas[None].expand(len(X), -1))
         return X
-
-    def _betas(self, seq) -> torch.Tensor:
-        """The sequence's body shape (S,) zero-padded to the body's betas."""
-        b = seq.betas.to(self.body.dtype)[: self.body.n_betas]
-        return torch.nn.functional.pad(b, (0, self.body.n_betas - len(b)))
 
     def _new_vae(self, n_vertices: int) -> GarmentVAE:
         v = self.p["vae"]
@@ -86,7 +81,7 @@ class VAEModel(DrapingMethod):
 
     def _descriptor(self, seq) -> torch.Tensor:
         with torch.no_grad():
-            return motion_descriptor(seq, self._pose_code(), self.body.n_betas).to(self.body.dtype)
+            return motion_descriptor(seq, self.body.full_betas(seq.betas), self._pose_code()).to(self.body.dtype)
 
     # ------------------------------------------------------------------ training
     def fit(self, data, train_cfg=None) -> FitReport:
@@ -136,7 +131,7 @@ class VAEModel(DrapingMethod):
                 idx = [i for i, s in enumerate(seqs) if s.n_frames == T]
                 with torch.no_grad():
                     A = torch.stack([seqs[i].transforms(body).to(body.dtype) for i in idx])
-                betas = torch.stack([self._betas(seqs[i]) for i in idx])
+                betas = torch.stack([self.body.full_betas(seqs[i].betas) for i in idx])
                 frames = torch.stack([drapes[i].to(body.dtype) for i in idx])
                 p = project_sequences(self.diffused, self.sdf, garment.topology, self.template, frames, betas, A, cfg,
                                       desc=f"vae projection ({len(idx)} sequences)")  # fmt: skip
@@ -243,7 +238,7 @@ class VAEModel(DrapingMethod):
             z = _timed(timings, "regressor", lambda: self.regressor(desc[None])[0][0])
             X = _timed(timings, "decoder", self.vae.decode, z)
             A = _timed(timings, "body", lambda: seq.transforms(body).to(body.dtype))
-            betas = self._betas(seq)[None].expand(len(X), -1)
+            betas = self.body.full_betas(seq.betas)[None].expand(len(X), -1)
             x = _timed(timings, "projection", garment_model, self.diffused, X, betas, A)
         return DrapeResult(x, timings, {"canonical": X})
 

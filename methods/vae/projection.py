@@ -33,9 +33,9 @@ class Projection:
 def projection_terms(diffused, sdf, topology, X, target, betas, transforms, cfg: dict) -> dict:
     """Eq. 9's weighted terms for canonical X (B, V, 3) against simulated frames target (B, V, 3), body
     shapes betas (B, S) and transforms (B, J, 4, 4): {"data": mm^2, "strain": %^2, "collision": mm}."""
-    posed = garment_model(diffused, X, betas, transforms)
-    data = ((posed - target) * 1e3).square().sum(-1).mean(-1)
-    strain = (green_strain(unposed(diffused, X, betas), topology) * 1e2).square().sum((-1, -2)).mean(-1)
+    rest = unposed(diffused, X, betas)
+    data = ((garment_model(diffused, X, betas, transforms, rest) - target) * 1e3).square().sum(-1).mean(-1)
+    strain = (green_strain(rest, topology) * 1e2).square().sum((-1, -2)).mean(-1)
     hinge = (cfg["eps"] - sdf(X)).clamp_min(0) * 1e3
     return {"data": data, "strain": cfg["strain_weight"] * strain, "collision": cfg["collision_weight"] * hinge.mean(-1)}
 
@@ -45,7 +45,7 @@ def inverse_skinning(diffused, X, target, betas, transforms, iterations: int = 2
     with torch.no_grad():
         for _ in range(iterations):
             rest = inverse_lbs(target, diffused.weights(X), transforms)
-            X = rest - diffused.shape_offsets(X, betas[:, None, :].expand(-1, X.shape[1], -1))
+            X = rest - (unposed(diffused, X, betas) - X)  # minus the shape offsets at X
     return X
 
 

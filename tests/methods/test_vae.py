@@ -75,13 +75,13 @@ def test_the_descriptor_holds_velocities_and_accelerations_at_the_frame_rate():
     x = torch.arange(5.0)[:, None] * 0.1  # 0.1 m per frame
     assert torch.allclose(derivative(x, 30.0)[1:], torch.full((4, 1), 3.0))  # m/s
     seq = make_sequence("walk", 20, fps=30.0, seed=1)
-    d = motion_descriptor(seq)
+    d = motion_descriptor(seq, seq.betas)
     P = 3 * (seq.poses.shape[1] - 1)
     assert d.shape == (seq.n_frames, 3 * P + 12 + len(seq.betas))
     v_H = d[:, 3 * P : 3 * P + 3]
     assert torch.allclose(v_H[1:], torch.diff(seq.trans, dim=0) * 30.0, atol=1e-5)
     code = lambda R: R.flatten(-3)[..., :4]  # noqa: E731 - any pose code of 4 values
-    assert motion_descriptor(seq, code).shape[1] == 3 * 4 + 12 + len(seq.betas)
+    assert motion_descriptor(seq, seq.betas, code).shape[1] == 3 * 4 + 12 + len(seq.betas)
 
 
 def _posed_frames(body, X, seq, diffused):
