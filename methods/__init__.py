@@ -17,6 +17,7 @@ _REGISTRY: dict[str, str] = {
     "gaps": "methods.gaps:GAPS",
     "pbs": "methods.pbs:PBSMethod",
     "gensim": "methods.gensim:GenSim",
+    "vae": "methods.vae:VAEModel",
 }
 
 
