@@ -107,8 +107,9 @@ def drape_ms_per_frame(timings_ms: dict, drape_s: float, n_frames: int) -> float
 
 def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir: Path | None = None):
     """Train, or load a checkpoint whose hash (method + training config + training data content + garment
-    (not for a generic method) + body + material) matches. Training writes its per-step ``losses.csv`` into ``log_dir`` (passed to
-    ``fit`` as the train config's ``log_dir`` entry); a loaded checkpoint writes its saved one."""
+    (not for a generic method) + body + material) matches. ``log_dir`` (passed to ``fit`` as the train config's ``log_dir``
+    entry, for live logs) gets the fit's ``losses.csv`` (per step) and, when the method evaluates per epoch,
+    ``evaluations.csv``, the same from a fresh fit or a loaded checkpoint."""
     data_key = dataset_hash(train_cfg["dataset"]) if train_cfg.get("dataset") else None
     if method.needs_reference:  # trained on the reference set of the `data` preset
         data_key = OmegaConf.to_container(cfg.data, resolve=True)
@@ -120,15 +121,26 @@ def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir
         method.bind(data.body, data.material)
         method.load_state_dict(state["method"])
         log.info("loaded checkpoint %s (trained in %.1f s)", path.name, state["train_s"])
-        if log_dir is not None and state.get("history"):
-            write_losses(log_dir / "losses.csv", state["history"])
+        _write_fit_logs(log_dir, state.get("history", []), state.get("evaluations", []))
         return state["train_s"], str(path)
     report = method.fit(data, train_cfg if log_dir is None else {**train_cfg, "log_dir": str(log_dir)})
+    _write_fit_logs(log_dir, report.history, report.evaluations)
     state = method.state_dict()
     if not state:
         return report.train_s, None
-    CHECKPOINTS.store(path, lambda tmp: torch.save({"method": state, "train_s": report.train_s, "history": report.history}, tmp))
+    CHECKPOINTS.store(path, lambda tmp: torch.save({"method": state, "train_s": report.train_s, "history": report.history,
+                                                    "evaluations": report.evaluations}, tmp))  # fmt: skip
     return report.train_s, str(path)
+
+
+def _write_fit_logs(log_dir: Path | None, history: list[dict], evaluations: list[dict]) -> None:
+    """``losses.csv`` and ``evaluations.csv`` of a fit into ``log_dir`` (those with rows; nothing without a log_dir)."""
+    if log_dir is None:
+        return
+    if history:
+        write_losses(log_dir / "losses.csv", history)
+    if evaluations:
+        write_losses(log_dir / "evaluations.csv", evaluations)
 
 
 def _metrics_code_hash() -> str:

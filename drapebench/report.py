@@ -30,6 +30,7 @@ TABLES = {
     "gaps_table3": (["eps_e", "eps_a"], "shape"),
     "runtime": (["train_s", "ms_per_frame"], "garment"),
     "physics": (["eps_e", "eps_c", "penetration_mm", "jitter", "smoothness"], "garment"),
+    "vae_table1": (["eps_c", "vertex_error_mm", "ms_per_frame"], "shape"),
 }
 
 
@@ -203,6 +204,42 @@ def loss_curve_plot(losses_csv: Path, path: Path | None = None) -> Path:
     return save_figure(fig, path)
 
 
+EVALUATION_LABELS = {
+    "val_colliding_pct": "validation reconstructions",
+    "sampled_colliding_pct": "decoded samples z ~ N(0, I)",
+}
+
+
+def evaluation_plot(dirs, path: Path, columns=tuple(EVALUATION_LABELS), title: str = "") -> Path:
+    """Per-epoch evaluations of trained runs (``evaluations.csv`` beside each run's ``metrics.json``) against
+    the epoch: one colour per method, one line style per column of ``columns`` (percentages). Runs of one
+    method sharing a checkpoint draw one curve. Written to ``path`` (PNG); returns it."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    df = collect(dirs)
+    curves = {}
+    for _, r in df.iterrows():
+        csv = Path(r["run_dir"]) / "evaluations.csv"
+        if csv.exists():
+            curves.setdefault(r["method"], pd.read_csv(csv))
+    if not curves:
+        raise FileNotFoundError(f"no evaluations.csv in the runs below {', '.join(map(str, dirs))} (only methods that evaluate per epoch write one)")
+    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    styles = ["-", "--", ":", "-."]
+    for i, (method, ev) in enumerate(curves.items()):
+        for j, col in enumerate(c for c in columns if c in ev):
+            ax.plot(ev["epoch"] + 1, ev[col], styles[j % len(styles)], color=f"C{i}", label=f"{method}: {EVALUATION_LABELS.get(col, col)}")
+    ax.set_xlabel("training epoch", fontsize=9)
+    ax.set_ylabel("garment vertices inside the canonical body (%)", fontsize=9)
+    ax.set_title(title or "collisions in the canonical space per training epoch", fontsize=10)
+    ax.legend(fontsize=7)
+    ax.grid(alpha=0.3)
+    return save_figure(fig, path)
+
+
 def write_table(dirs, name: str, out: Path, command: str | None = None) -> list[Path]:
     """Write ``out``.md/.tex/.csv and ``out``_runtime.png for table ``name``; returns the paths."""
     if name not in TABLES:
@@ -256,7 +293,12 @@ def main(argv=None) -> None:
     parser.add_argument("--out", type=Path, help="output path without suffix (default: a new folder outputs/reports/<time>/<table>; "
                         "give reports/<table> to replace a committed table)")
     parser.add_argument("--loss-curves", action="store_true", help="instead: losses.png beside every losses.csv in dirs")
+    parser.add_argument("--evaluations", action="store_true",
+                        help="instead: one plot of the runs' per-epoch evaluations (evaluations.csv; the VAE's collisions per epoch) at --out.png")
     args = parser.parse_args(argv)
+    if args.evaluations:
+        print(evaluation_plot(args.dirs, (args.out or default_out("evaluations")).with_suffix(".png")))
+        return
     if args.loss_curves:
         for csv in sorted(c for d in args.dirs for c in Path(d).rglob("losses.csv")):
             print(loss_curve_plot(csv))

@@ -31,12 +31,14 @@ class DrapeResult:
 @dataclass
 class FitReport:
     """Summary of :meth:`DrapingMethod.fit`: wall time (s), optimisation steps, last loss terms,
-    per-epoch loss history and whether training was skipped because a checkpoint was loaded."""
+    per-step loss history, per-epoch evaluation records (methods whose objective evaluates, e.g. the VAE's
+    collisions per epoch) and whether training was skipped because a checkpoint was loaded."""
 
     train_s: float = 0.0
     n_steps: int = 0
     final_losses: dict[str, float] = field(default_factory=dict)
     history: list[dict[str, float]] = field(default_factory=list)
+    evaluations: list[dict[str, float]] = field(default_factory=list)
     resumed_from: str | None = None
 
 

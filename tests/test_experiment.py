@@ -108,7 +108,7 @@ def test_gaps_reads_its_own_training_keys_per_budget_and_a_wrong_train_key_fails
         _compose(["train.steps=many"])
 
 
-def test_training_writes_losses_csv_into_the_run_directory_and_a_loaded_checkpoint_too(tmp_path, monkeypatch, body_lowres):
+def test_training_writes_losses_and_evaluations_csv_into_the_run_directory_and_a_loaded_checkpoint_too(tmp_path, monkeypatch, body_lowres):
     from drapebench.experiment import _checkpoint
     from methods.base import DrapingMethod, FitReport
 
@@ -119,8 +119,7 @@ def test_training_writes_losses_csv_into_the_run_directory_and_a_loaded_checkpoi
 
         def fit(self, data, train_cfg=None):
             self.fits.append(dict(train_cfg))
-            (Path(train_cfg["log_dir"]) / "losses.csv").write_text("step,loss\n1,0.5\n")
-            return FitReport(train_s=1.0, n_steps=1, history=[{"step": 1, "loss": 0.5}])
+            return FitReport(train_s=1.0, n_steps=1, history=[{"step": 1, "loss": 0.5}], evaluations=[{"epoch": 0, "step": 1, "colliding": 2.0}])
 
         def drape(self, garment, seq):
             raise NotImplementedError
@@ -139,6 +138,7 @@ def test_training_writes_losses_csv_into_the_run_directory_and_a_loaded_checkpoi
         run_dir.mkdir()
         _checkpoint(Learned(), cfg, garment, data, train_cfg, log_dir=run_dir)
         assert (run_dir / "losses.csv").read_text().splitlines() == ["step,loss", "1,0.5"]
+        assert (run_dir / "evaluations.csv").read_text().splitlines() == ["epoch,step,colliding", "0,1,2.0"]
     assert len(Learned.fits) == 1 and Learned.fits[0]["log_dir"] == str(tmp_path / "a")
 
 

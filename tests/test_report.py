@@ -171,3 +171,19 @@ def test_committed_tables_name_the_command_and_commit_that_made_them():
     index = (reports / "README.md").read_text()
     unlisted = [p.stem for p in tables if p.suffix == ".md" and f"({p.name})" not in index]
     assert not unlisted, f"tables not in reports/README.md: {unlisted}"
+
+
+def test_evaluation_plot_draws_the_runs_per_epoch_evaluations(tmp_path):
+    import shutil
+
+    from drapebench.report import evaluation_plot, main
+
+    shutil.copytree(FIXTURES, tmp_path / "runs")
+    runs = sorted((tmp_path / "runs").rglob("metrics.json"))
+    with pytest.raises(FileNotFoundError, match="no evaluations.csv"):
+        evaluation_plot([tmp_path / "runs"], tmp_path / "fig.png")
+    (runs[0].parent / "evaluations.csv").write_text("epoch,step,val_colliding_pct,sampled_colliding_pct\n0,8,1.5,3.0\n1,16,0.5,1.0\n")
+    path = evaluation_plot([tmp_path / "runs"], tmp_path / "fig.png")
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and path.stat().st_size > 5000
+    main([str(tmp_path / "runs"), "--evaluations", "--out", str(tmp_path / "fig4")])
+    assert (tmp_path / "fig4.png").exists()
