@@ -25,7 +25,7 @@ BODY_SDF_DEFAULTS = dict(
     n_box=15000,  # training points uniform in the bounding box grown by box_padding
     box_padding=0.2,  # m
     n_heldout=5000,  # held-out near-surface points for the reported error
-    width=128,  # hidden units per layer
+    width=64,  # hidden units per layer (128: 3x slower, held-out mean error 0.60 mm instead of 0.77 mm)
     depth=3,  # hidden layers
     n_frequencies=6,  # Fourier octaves of the input encoding (0 = plain coordinates)
     weight_scale=0.01,  # m: the L1 loss weighs a point at distance d by 1 / (1 + |d| / weight_scale); 0 = uniform

@@ -36,7 +36,7 @@ DIFFUSED_DEFAULTS = dict(
     n_surface=20000,  # training points on the surface (exact values)
     n_shell=20000,  # training points in the shell (diffused values)
     n_heldout=2000,  # held-out surface and shell points for the reported fit error
-    width=128,  # hidden units per layer of each MLP
+    width=64,  # hidden units per layer of each MLP (128: 2.5x slower posing, held-out errors 0.015 / 0.15 mm instead of 0.023 / 0.22 mm)
     depth=3,  # hidden layers of each MLP
     n_frequencies=6,  # Fourier octaves of the input encoding (0 = plain coordinates)
     steps=3000,  # Adam steps

@@ -15,7 +15,7 @@ PROJECTION_DEFAULTS = dict(
     steps=40,  # Adam steps per frame (the first frame: 4x)
     lr=2.0e-4,  # m per step
     strain_weight=1.0,  # w1 of Eq. 9 on the mean squared Green-Lagrange strain (Eq. 11)
-    collision_weight=1.0,  # w2 of Eq. 9 on the mean hinge max(eps - SDF(X), 0) in mm (Eq. 12)
+    collision_weight=30.0,  # w2 of Eq. 9 on the mean hinge max(eps - SDF(X), 0) in mm (Eq. 12)
     eps=0.002,  # collision margin (m) of Eq. 12 and Eq. 16
 )
 VAE_DEFAULTS = dict(
