@@ -31,7 +31,9 @@ TABLES = {
     "runtime": (["train_s", "ms_per_frame"], "garment"),
     "physics": (["eps_e", "eps_c", "penetration_mm", "jitter", "smoothness"], "garment"),
     "vae_table1": (["eps_c", "vertex_error_mm", "ms_per_frame"], "shape"),
+    "runtime_vs_error": (["ms_per_frame", "vertex_error_mm", "eps_e", "eps_a", "eps_c", "train_s"], "garment"),
 }
+REFERENCE_METHOD = "pbs"  # the physics reference run as a method: the speed-ups of runtime_vs_error are over it
 
 
 def _job_order(path: Path) -> list:
@@ -164,6 +166,54 @@ def runtime_plot(df: pd.DataFrame, path: Path, title: str = "") -> Path:
     return save_figure(fig, path)
 
 
+def pareto_plot(df: pd.DataFrame, path: Path, title: str = "") -> Path:
+    """Drape time (ms/frame, log x) against :func:`runtime_error`, one panel per garment, a colour per
+    method (runs of a method on a garment averaged, labelled with the method); the methods no other is
+    both faster and more accurate than are joined by a line (the Pareto front)."""
+    import matplotlib
+    import matplotlib.ticker
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    error = runtime_error(df)
+    means = df.groupby(["garment", "method"], sort=False)[["ms_per_frame", error]].mean().reset_index()
+    garments = list(dict.fromkeys(means["garment"]))
+    colours = {m: f"C{i}" for i, m in enumerate(dict.fromkeys(means["method"]))}
+    fig, axes = plt.subplots(1, len(garments), figsize=(4.6 * len(garments), 4.2), squeeze=False)
+    for ax, garment in zip(axes[0], garments):
+        g = means[(means["garment"] == garment) & means[error].notna()].sort_values("ms_per_frame")
+        for _, r in g.iterrows():
+            ax.scatter(r["ms_per_frame"], r[error], color=colours[r["method"]], s=40)
+            ax.annotate(r["method"], (r["ms_per_frame"], r[error]), fontsize=7, xytext=(3, 3), textcoords="offset points")
+        front = g[g[error] <= g[error].cummin()]
+        ax.plot(front["ms_per_frame"], front[error], color="grey", lw=0.8, ls="--", label="Pareto front")
+        ax.set_xscale("log")
+        ax.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
+        ax.set_xlabel("drape time per frame (ms, log scale)", fontsize=9)
+        ax.set_ylabel(f"{error}: {METRICS[error].meaning} ({METRICS[error].unit})", fontsize=8)
+        ax.set_title(garment, fontsize=10)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.suptitle(f"{title + ': ' if title else ''}runtime against {error} (lower left is better)", fontsize=10)
+    return save_figure(fig, path)
+
+
+def speedups(df: pd.DataFrame, reference: str = REFERENCE_METHOD) -> str:
+    """One markdown line per garment: each method's speed-up over ``reference`` (its mean ms/frame over the
+    method's); empty when the runs have no ``reference`` method."""
+    if reference not in set(df["method"]):
+        return ""
+    ms = df.groupby(["garment", "method"], sort=False)["ms_per_frame"].mean()
+    lines = []
+    for garment in dict.fromkeys(df["garment"]):
+        if (garment, reference) not in ms:
+            continue
+        ref = ms[(garment, reference)]
+        lines.append(f"- {garment}: " + ", ".join(f"{m} {ref / v:.3g}x" for (g, m), v in ms.items() if g == garment and m != reference))
+    return f"Speed-up over `{reference}` (its ms/frame over the method's):\n" + "\n".join(lines) if lines else ""
+
+
 def save_figure(fig, path: Path) -> Path:
     """Lay out ``fig``, write it to ``path`` as a PNG atomically and close it; returns ``path``."""
     import matplotlib.pyplot as plt
@@ -251,6 +301,8 @@ def write_table(dirs, name: str, out: Path, command: str | None = None) -> list[
     prov = provenance(pd.concat([df, failed]), command)
     about = f"{scene(pd.concat([df, failed]))}\n\n{legend(metrics)}"
     notes = "".join(f"\n- {r.method} on {r[group]} failed: {r.message}" for _, r in failed.iterrows()) if len(failed) else ""
+    if name == "runtime_vs_error" and speedups(df):
+        notes += "\n\n" + speedups(df)
     out = Path(out)
     paths = [out.with_suffix(".md"), out.with_suffix(".tex"), out.with_suffix(".csv"), out.parent / f"{out.name}_runtime.png"]
     with atomic_write(paths[0], "w") as f:
@@ -261,7 +313,7 @@ def write_table(dirs, name: str, out: Path, command: str | None = None) -> list[
     with atomic_write(paths[2], "w") as f:
         f.write(comment.format(c="#"))
         t.to_csv(f)
-    runtime_plot(df, paths[3], title=name)
+    (pareto_plot if name == "runtime_vs_error" else runtime_plot)(df, paths[3], title=name)
     return paths
 
 

@@ -187,3 +187,19 @@ def test_evaluation_plot_draws_the_runs_per_epoch_evaluations(tmp_path):
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and path.stat().st_size > 5000
     main([str(tmp_path / "runs"), "--evaluations", "--out", str(tmp_path / "fig4")])
     assert (tmp_path / "fig4.png").exists()
+
+
+def test_runtime_vs_error_has_a_pareto_panel_per_garment_and_the_speed_up_over_the_reference(tmp_path):
+    from drapebench.report import pareto_plot, speedups
+
+    df = collect([FIXTURES]).assign(vertex_error_mm=[12.0, 20.0, 0.5, 0.7])
+    assert speedups(df).splitlines()[1:] == ["- tshirt: lbs 500x", "- skirt: lbs 714x"]
+    assert speedups(df[df["method"] == "lbs"]) == ""  # no reference run, no speed-up
+    path = pareto_plot(df, tmp_path / "pareto.png", title="t")
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    import matplotlib.image
+
+    height, width = matplotlib.image.imread(path).shape[:2]
+    assert width > 1.8 * height  # two panels side by side
+    md = write_table([FIXTURES], "runtime_vs_error", tmp_path / "rve", command="pytest")[0]
+    assert "ms/frame" in md.read_text() and "Speed-up over `pbs`" in md.read_text()
