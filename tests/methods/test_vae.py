@@ -230,6 +230,10 @@ def test_a_tiny_fit_drapes_and_its_state_round_trips(body, tmp_path):
     out = m.drape(garment, test)
     assert out.vertices.shape == (test.n_frames, garment.n_vertices, 3) and torch.isfinite(out.vertices).all()
     assert {"regressor", "decoder", "projection"} <= set(out.timings_ms)
+    canonical = out.extras["canonical"]  # posed in chunks of frames: the same as all frames at once
+    betas = body.full_betas(test.betas)[None].expand(len(canonical), -1)
+    torch.testing.assert_close(out.vertices, garment_model(diffused, canonical, betas, test.transforms(body)))
+    assert report.evaluations == m.evaluations  # what the run writes to evaluations.csv
     state = m.state_dict()
     again = _tiny_model(body, diffused, sdf)
     again.bind(body, data.material)
