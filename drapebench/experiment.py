@@ -106,7 +106,7 @@ def drape_ms_per_frame(timings_ms: dict, drape_s: float, n_frames: int) -> float
 
 
 def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir: Path | None = None):
-    """Train, or load a checkpoint whose hash (method + training config + training data content + garment
+    """Train, or load a checkpoint whose hash (method config + the method's settings_key + training config + training data content + garment
     (not for a generic method) + body + material) matches. ``log_dir`` (passed to ``fit`` as the train config's ``log_dir``
     entry, for live logs) gets the fit's ``losses.csv`` (per step) and, when the method evaluates per epoch,
     ``evaluations.csv``, the same from a fresh fit or a loaded checkpoint."""
@@ -114,7 +114,8 @@ def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir
     if method.needs_reference:  # trained on the reference set of the `data` preset
         data_key = OmegaConf.to_container(cfg.data, resolve=True)
     scene_garment = None if method.generic else (garment.vertices, garment.faces)  # one model for any garment: not keyed by it
-    path = CHECKPOINTS.path(OmegaConf.to_container(cfg.method, resolve=True), train_cfg, data_key, scene_garment,
+    settings = method.settings_key()
+    path = CHECKPOINTS.path(OmegaConf.to_container(cfg.method, resolve=True), *([settings] if settings is not None else []), train_cfg, data_key, scene_garment,
                             body_key(data.body), OmegaConf.to_container(cfg.material, resolve=True), prefix=cfg.method.name, suffix=".pt")  # fmt: skip
     state = CHECKPOINTS.load(path, partial(torch.load, map_location="cpu", weights_only=False), force=bool(cfg.force))
     if state is not None:

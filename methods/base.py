@@ -77,6 +77,11 @@ class DrapingMethod(ABC):
     def drape(self, garment, seq) -> DrapeResult:
         """Drape ``garment`` over body sequence ``seq``; inference only, returns (T, V, 3) vertices."""
 
+    def settings_key(self) -> Any:
+        """Settings a trained state depends on beyond ``cfg`` (code defaults resolved), part of the checkpoint
+        key so that changing a default retrains; None (the default) when ``cfg`` says it all."""
+        return None
+
     def state_dict(self) -> dict[str, Any]:
         """Learned state (tensors and plain values); empty for methods with nothing to learn."""
         return {}

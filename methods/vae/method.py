@@ -52,6 +52,11 @@ class VAEModel(DrapingMethod):
         self.projection_stats: dict = {}
 
     # ------------------------------------------------------------------ shared pieces
+    def settings_key(self) -> dict:
+        """The resolved parameters and body-field settings (their code defaults included) the trained model depends on."""
+        from drapebench.body import BODY_SDF_DEFAULTS, DIFFUSED_DEFAULTS
+
+        return {**self.p, "diffused": {**DIFFUSED_DEFAULTS, **self.p["diffused"]}, "sdf": {**BODY_SDF_DEFAULTS, **self.p["sdf"]}}
     def _body_fields(self) -> None:
         """The diffused body model and the canonical body's learned SDF (fitted once per body, cached); fields
         already set are kept."""
