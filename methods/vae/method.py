@@ -128,7 +128,8 @@ class VAEModel(DrapingMethod):
     def _project(self, garment, seqs, drapes) -> Projection:
         """Canonical projections of the reference drapes (cached by content), sequences of one length at a time."""
         body, cfg = self.body, self.p["projection"]
-        path = PROJECTIONS.path(cfg, self.p["diffused"], self.p["sdf"], body_key(body), garment.vertices, garment.faces,
+        fields = self.settings_key()
+        path = PROJECTIONS.path(cfg, fields["diffused"], fields["sdf"], body_key(body), garment.vertices, garment.faces,
                                 [(s.betas, s.poses, s.trans, s.fps) for s in seqs], drapes, prefix="projection", suffix=".pt")  # fmt: skip
         hit = PROJECTIONS.load(path, lambda p: torch.load(p, weights_only=False))
         if hit is None:
