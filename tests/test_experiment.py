@@ -115,7 +115,10 @@ def test_training_writes_losses_and_evaluations_csv_into_the_run_directory_and_a
     monkeypatch.setenv("DRAPEBENCH_DATA", str(tmp_path / "data"))
 
     class Learned(DrapingMethod):
-        fits = []
+        fits, settings = [], None
+
+        def settings_key(self):
+            return self.settings
 
         def fit(self, data, train_cfg=None):
             self.fits.append(dict(train_cfg))
@@ -140,6 +143,10 @@ def test_training_writes_losses_and_evaluations_csv_into_the_run_directory_and_a
         assert (run_dir / "losses.csv").read_text().splitlines() == ["step,loss", "1,0.5"]
         assert (run_dir / "evaluations.csv").read_text().splitlines() == ["epoch,step,colliding", "0,1,2.0"]
     assert len(Learned.fits) == 1 and Learned.fits[0]["log_dir"] == str(tmp_path / "a")
+    Learned.settings = {"width": 64}  # a changed code default of the method retrains
+    (tmp_path / "c").mkdir()
+    _checkpoint(Learned(), cfg, garment, data, train_cfg, log_dir=tmp_path / "c")
+    assert len(Learned.fits) == 2
 
 
 def _fresh(extra=()):
