@@ -11,11 +11,11 @@ from typing import Any, Mapping
 from methods.params import method_params
 
 PROJECTION_DEFAULTS = dict(
-    init="inverse_skinning",  # inverse_skinning | previous: each frame starts from the previous frame's X
+    init="previous",  # previous: each frame starts from the previous frame's X (the paper) | inverse_skinning: then 2 fixed-point inversions
     steps=40,  # Adam steps per frame (the first frame: 4x)
     lr=2.0e-4,  # m per step
     strain_weight=1.0,  # w1 of Eq. 9 on the mean squared Green-Lagrange strain (Eq. 11)
-    collision_weight=30.0,  # w2 of Eq. 9 on the mean hinge max(eps - SDF(X), 0) in mm (Eq. 12)
+    collision_weight=300.0,  # w2 of Eq. 9 on the mean hinge max(eps - SDF(X), 0) in mm (Eq. 12)
     eps=0.002,  # collision margin (m) of Eq. 12 and Eq. 16
 )
 VAE_DEFAULTS = dict(

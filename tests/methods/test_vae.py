@@ -106,7 +106,7 @@ def test_projection_then_unprojection_returns_the_simulated_frames(body):
     X, topo = _garment_near(body)
     seq = make_sequence("walk", 6, seed=2, betas=[0.5, -0.5, 0, 0], transition=2)
     frames = _posed_frames(body, X + torch.tensor([0.003, -0.004, 0.002]), seq, diffused)  # moved off the template, unstrained
-    cfg = {**vae_params(None)["projection"], "steps": 5}
+    cfg = vae_params(None)["projection"]  # the defaults: warm start from the previous frame, 40 steps per frame
     far = SphereSDF(c=(5.0, 5.0, 5.0), r=0.1)  # no collisions: the data term alone decides
     p = project_sequences(diffused, far, topo, X, frames[None], seq.betas[None, : body.n_betas], seq.transforms(body)[None], cfg)
     assert p.X.shape == (1, seq.n_frames, len(X), 3)
