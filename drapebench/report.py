@@ -195,7 +195,7 @@ def pareto_plot(df: pd.DataFrame, path: Path, title: str = "") -> Path:
         ax.set_title(garment, fontsize=10)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
-    fig.suptitle(f"{title + ': ' if title else ''}runtime against {error} (lower left is better)", fontsize=10)
+    fig.suptitle(f"{title + chr(10) if title else ''}runtime against {error}\n(lower left is better)", fontsize=10)
     return save_figure(fig, path)
 
 
