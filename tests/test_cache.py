@@ -202,7 +202,10 @@ class _Method:
     def fit(self, data, train_cfg):
         self.calls.append(1)
         self.w = torch.arange(4.0)
-        return SimpleNamespace(train_s=1.0, history=[])
+        return SimpleNamespace(train_s=1.0, history=[], evaluations=[])
+
+    def settings_key(self):
+        return None
 
     def state_dict(self):
         return {"w": self.w}
