@@ -81,15 +81,30 @@ def _check_candidates(candidates: torch.Tensor | None, n_body: int, device: torc
     return c
 
 
-def nearest_indices(points: torch.Tensor, body_vertices: torch.Tensor, candidates: torch.Tensor | None = None) -> torch.Tensor:
+def body_vertex_tree(body_vertices: torch.Tensor, candidates: torch.Tensor | None = None) -> cKDTree | None:
+    """A KD-tree over one body frame's vertices (Vb, 3) (only ``candidates`` when given), to pass as ``tree=``
+    to :func:`nearest_indices` / :func:`nearest_body_vertex` when the same body is queried many times
+    (None on CUDA, where the search is a cdist)."""
+    if body_vertices.is_cuda:
+        return None
+    v = body_vertices.detach().reshape(-1, 3)
+    cand = _check_candidates(candidates, len(v), v.device)
+    return cKDTree((v if cand is None else v[cand]).cpu().numpy())
+
+
+def nearest_indices(points: torch.Tensor, body_vertices: torch.Tensor, candidates: torch.Tensor | None = None,
+                    tree: cKDTree | None = None) -> torch.Tensor:  # fmt: skip
     """Index (B,N) long of the nearest body vertex per point (not differentiable).
 
     points (B,N,3), body_vertices (B,Vb,3) or (1,Vb,3); ``candidates`` (C,) restricts the search to
-    those body vertices (returned indices are still global body vertex indices).
+    those body vertices (returned indices are still global body vertex indices); ``tree`` is
+    :func:`body_vertex_tree` of the same single body frame and candidates (built here when None).
     """
     points, body_vertices = _as_batch(points, body_vertices)
     cand = _check_candidates(candidates, body_vertices.shape[1], body_vertices.device)
-    shared = body_vertices.stride(0) == 0  # one body frame broadcast over the batch: one search structure
+    shared = len(body_vertices) == 1 or body_vertices.stride(0) == 0  # one body frame for the batch: one search structure
+    if tree is not None and not shared:
+        raise ValueError("tree= is a search structure of one body frame; pass body_vertices as (1, Vb, 3)")
     pts = points.detach()
     body = body_vertices.detach()[:1] if shared else body_vertices.detach()
     if cand is not None:
@@ -98,7 +113,7 @@ def nearest_indices(points: torch.Tensor, body_vertices: torch.Tensor, candidate
         idx = torch.stack([_knn(pts[b], body[0 if shared else b], 1)[1][:, 0] for b in range(len(pts))])
     else:
         p, q = pts.cpu().numpy(), body.cpu().numpy()
-        tree = cKDTree(q[0]) if shared else None
+        tree = tree or (cKDTree(q[0]) if shared else None)
         idx = np.stack([(tree or cKDTree(q[b])).query(p[b], workers=1)[1] for b in range(len(p))])
         idx = torch.from_numpy(idx).long().to(points.device)
     return idx if cand is None else cand[idx]
@@ -109,16 +124,18 @@ def nearest_body_vertex(
     body_vertices: torch.Tensor,
     body_normals: torch.Tensor,
     candidates: torch.Tensor | None = None,
+    tree: cKDTree | None = None,
 ) -> NearestVertex:
     """Nearest body vertex per garment point, with the signed normal distance (GAPS/SNUG collision).
 
     points (B,N,3) m; body_vertices (B,Vb,3) (or (1,Vb,3), shared by the batch); body_normals
     (B,Vb,3) unit area-weighted vertex normals; ``candidates`` (C,) body vertex indices to search
-    (see :func:`culled_body_vertices`). Differentiable w.r.t. ``points`` and the body through the
-    gather (the index selection itself is not). Returns :class:`NearestVertex`.
+    (see :func:`culled_body_vertices`); ``tree`` a prebuilt :func:`body_vertex_tree` of a single body
+    frame. Differentiable w.r.t. ``points`` and the body through the gather (the index selection itself
+    is not). Returns :class:`NearestVertex`.
     """
     points, body_vertices, body_normals = _as_batch(points, body_vertices, body_normals)
-    idx = nearest_indices(points, body_vertices, candidates)
+    idx = nearest_indices(points, body_vertices, candidates, tree)
     gather = idx[..., None].expand(-1, -1, 3)
     p = torch.gather(body_vertices, 1, gather).to(points.dtype)
     n = torch.gather(body_normals, 1, gather).to(points.dtype)

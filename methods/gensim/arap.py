@@ -17,7 +17,7 @@ import torch
 from drapebench.body.lbs import lbs
 from drapebench.body.skinning import nearest_weights, transfer_shape
 from drapebench.geometry.arap import arap_solver
-from drapebench.geometry.proximity import nearest_body_vertex, nearest_indices
+from drapebench.geometry.proximity import body_vertex_tree, nearest_body_vertex, nearest_indices
 
 
 @dataclass(frozen=True)
@@ -105,12 +105,14 @@ def motion_aware_arap(template, faces, handles, targets, target_body, target_nor
     solver = arap_solver(template, faces, idx, cfg.arap_iterations)
     start, goal = template[idx].double(), targets[idx].double()
     free = ~handles
+    body, body_normals = target_body[None].double(), target_normals[None].double()
+    tree = body_vertex_tree(body[0], candidates)  # one search structure for the frame's 10 steps
     G = template.double().numpy()
     for k in range(1, cfg.n_iterations + 1):
         S = start + (goal - start) * (k / cfg.n_iterations)
         G = solver.solve(S.numpy(), G)
         x = torch.from_numpy(G)
-        nn = nearest_body_vertex(x[free][None], target_body[None].double(), target_normals[None].double(), candidates)
+        nn = nearest_body_vertex(x[free][None], body, body_normals, candidates, tree)
         zeta, n = nn.distance[0], nn.normal[0]
         push = torch.zeros_like(x)
         push[free] = torch.where((zeta <= 0)[:, None], -zeta[:, None] * n, torch.zeros_like(n))

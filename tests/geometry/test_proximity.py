@@ -4,7 +4,7 @@ import torch
 import trimesh
 from scipy.spatial import cKDTree
 
-from drapebench.geometry.proximity import culled_body_faces, culled_body_vertices, nearest_body_vertex
+from drapebench.geometry.proximity import body_vertex_tree, culled_body_faces, culled_body_vertices, nearest_body_vertex
 
 
 @pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
@@ -25,6 +25,19 @@ def test_nearest_body_vertex_matches_brute_force_and_differentiates(dtype):
     cand = torch.arange(0, 500, 3)
     sub = nearest_body_vertex(x, body, normals, cand)
     assert torch.equal(sub.index, cand[torch.cdist(x.double(), body[:, cand].double()).argmin(-1)])
+
+
+def test_a_prebuilt_tree_gives_the_same_answers_and_is_only_for_one_body_frame():
+    g = torch.Generator().manual_seed(2)
+    x = torch.randn(2, 100, 3, generator=g, dtype=torch.float64)
+    body = torch.randn(1, 400, 3, generator=g, dtype=torch.float64)
+    normals = torch.nn.functional.normalize(torch.randn(1, 400, 3, generator=g, dtype=torch.float64), dim=-1)
+    cand = torch.arange(1, 400, 2)
+    for c in (None, cand):
+        tree = body_vertex_tree(body[0], c)
+        assert torch.equal(nearest_body_vertex(x, body, normals, c, tree).index, nearest_body_vertex(x, body, normals, c).index)
+    with pytest.raises(ValueError, match="one body frame"):
+        nearest_body_vertex(x, body.expand(2, -1, -1).clone(), normals.expand(2, -1, -1).clone(), tree=body_vertex_tree(body[0]))
 
 
 def test_bad_inputs_are_named():
