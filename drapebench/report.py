@@ -32,6 +32,14 @@ TABLES = {
     "physics": (["eps_e", "eps_c", "penetration_mm", "jitter", "smoothness"], "garment"),
     "vae_table1": (["eps_c", "vertex_error_mm", "ms_per_frame"], "shape"),
     "runtime_vs_error": (["ms_per_frame", "vertex_error_mm", "eps_e", "eps_a", "eps_c", "train_s"], "garment"),
+    "gensim_table2": (["edge_mm", "smoothness", "eps_c", "vertex_error_mm"], "garment"),
+    "gensim_ablation": (["eps_e", "edge_mm", "smoothness", "eps_c", "vertex_error_mm"], "garment"),
+    "gensim_table1": (["eps_c", "vertex_error_mm"], "experiment"),
+}
+# what a table's empty cells mean, printed under it
+TABLE_NOTES = {
+    "gensim_table1": "– : not run, the method trains one model per garment mesh and body (gaps, vae), so this column "
+    "would need a new model rather than test the trained one.",
 }
 REFERENCE_METHOD = "pbs"  # the physics reference run as a method: the speed-ups of runtime_vs_error are over it
 
@@ -290,17 +298,35 @@ def evaluation_plot(dirs, path: Path, columns=tuple(EVALUATION_LABELS), title: s
     return save_figure(fig, path)
 
 
-def write_table(dirs, name: str, out: Path, command: str | None = None) -> list[Path]:
-    """Write ``out``.md/.tex/.csv and ``out``_runtime.png for table ``name``; returns the paths."""
+def only_methods(df: pd.DataFrame, methods: list[str] | None) -> pd.DataFrame:
+    """The rows of ``df`` whose method is in ``methods``, in the order given (all rows for None); raises
+    ValueError naming a method no run has."""
+    if not methods or df.empty:
+        return df
+    missing = [m for m in methods if m not in set(df["method"])]
+    if missing:
+        raise ValueError(f"no run of method(s) {', '.join(missing)} in the given directories; the runs have: {', '.join(dict.fromkeys(df['method']))}")
+    order = {m: i for i, m in enumerate(methods)}
+    return df[df["method"].isin(order)].sort_values("method", key=lambda c: c.map(order), kind="stable")
+
+
+def write_table(dirs, name: str, out: Path, command: str | None = None, methods: list[str] | None = None) -> list[Path]:
+    """Write ``out``.md/.tex/.csv and ``out``_runtime.png for table ``name`` (rows: ``methods`` in that order,
+    or every method of the runs); returns the paths."""
     if name not in TABLES:
         raise KeyError(f"unknown table {name!r}; tables: {', '.join(TABLES)}")
     metrics, group = TABLES[name]
-    df, failed = collect(dirs), collect_failures(dirs)
+    df = only_methods(collect(dirs), methods)
+    failed = collect_failures(dirs)
+    if methods and not failed.empty:
+        failed = failed[failed["method"].isin(methods)]
     t = mark_failures(table(df, metrics, group=group), failed, group=group)
     command = command or "python -m drapebench.report " + " ".join(sys.argv[1:])
     prov = provenance(pd.concat([df, failed]), command)
     about = f"{scene(pd.concat([df, failed]))}\n\n{legend(metrics)}"
     notes = "".join(f"\n- {r.method} on {r[group]} failed: {r.message}" for _, r in failed.iterrows()) if len(failed) else ""
+    if name in TABLE_NOTES:
+        notes += "\n" + TABLE_NOTES[name]
     if name == "runtime_vs_error" and speedups(df):
         notes += "\n\n" + speedups(df)
     out = Path(out)
@@ -342,6 +368,8 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description="Paper-style tables from run or sweep directories.")
     parser.add_argument("dirs", nargs="+", type=Path, help="run or sweep directories (searched for metrics.json)")
     parser.add_argument("--table", default="baseline", choices=sorted(TABLES))
+    parser.add_argument("--methods", type=lambda s: [m for m in s.split(",") if m],
+                        help="comma-separated methods to show, in this order (default: every method of the runs)")
     parser.add_argument("--out", type=Path, help="output path without suffix (default: a new folder outputs/reports/<time>/<table>; "
                         "give reports/<table> to replace a committed table)")
     parser.add_argument("--loss-curves", action="store_true", help="instead: losses.png beside every losses.csv in dirs")
@@ -355,7 +383,7 @@ def main(argv=None) -> None:
         for csv in sorted(c for d in args.dirs for c in Path(d).rglob("losses.csv")):
             print(loss_curve_plot(csv))
         return
-    for p in write_table(args.dirs, args.table, args.out or default_out(args.table)):
+    for p in write_table(args.dirs, args.table, args.out or default_out(args.table), methods=args.methods):
         print(p)
 
 

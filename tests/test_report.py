@@ -203,3 +203,33 @@ def test_runtime_vs_error_has_a_pareto_panel_per_garment_and_the_speed_up_over_t
     assert width > 1.8 * height  # two panels side by side
     md = write_table([FIXTURES], "runtime_vs_error", tmp_path / "rve", command="pytest")[0]
     assert "ms/frame" in md.read_text() and "Speed-up over `pbs`" in md.read_text()
+
+
+def test_methods_filter_orders_rows_and_names_a_missing_method(tmp_path):
+    from drapebench.report import main
+
+    main([str(FIXTURES), "--table", "baseline", "--methods", "pbs,lbs", "--out", str(tmp_path / "t")])
+    rows = pd.read_csv(tmp_path / "t.csv", comment="#", header=[0, 1], index_col=0).index.tolist()
+    assert rows == ["pbs", "lbs"]
+    main([str(FIXTURES), "--table", "baseline", "--methods", "lbs", "--out", str(tmp_path / "u")])
+    assert pd.read_csv(tmp_path / "u.csv", comment="#", header=[0, 1], index_col=0).index.tolist() == ["lbs"]
+    with pytest.raises(ValueError, match="gensim"):
+        main([str(FIXTURES), "--table", "baseline", "--methods", "lbs,gensim", "--out", str(tmp_path / "v")])
+
+
+def test_generalisation_matrix_groups_columns_by_experiment_and_explains_empty_cells(tmp_path):
+    import json
+    import shutil
+
+    from drapebench.report import TABLE_NOTES, write_table
+
+    for i, (method, experiment) in enumerate([("lbs", "unseen_motion"), ("gensim", "unseen_motion"), ("gensim", "other_body")]):
+        d = tmp_path / f"{i}_{method}"
+        shutil.copytree(FIXTURES / "0_lbs_tshirt", d)
+        rec = {**json.loads((d / "metrics.json").read_text()), "method": method, "experiment": experiment, "vertex_error_mm": 10.0 + i}
+        (d / "metrics.json").write_text(json.dumps(rec))
+    md = write_table([tmp_path], "gensim_table1", tmp_path / "m")[0].read_text()
+    header = next(line for line in md.splitlines() if line.startswith("| method"))
+    assert "unseen_motion err. (mm)" in header and "other_body err. (mm)" in header
+    lbs_row = next(line for line in md.splitlines() if line.startswith("| lbs"))
+    assert lbs_row.rstrip(" |").endswith("–") and TABLE_NOTES["gensim_table1"] in md
