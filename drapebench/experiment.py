@@ -107,7 +107,7 @@ def drape_ms_per_frame(timings_ms: dict, drape_s: float, n_frames: int) -> float
 
 def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir: Path | None = None):
     """Train, or load a checkpoint whose hash (method config + the method's settings_key + training config + training data content + garment
-    (not for a generic method) + body + material) matches. ``log_dir`` (passed to ``fit`` as the train config's ``log_dir``
+    (not for a generic method) + the body it trains on (``method.trained_body``) + material) matches. ``log_dir`` (passed to ``fit`` as the train config's ``log_dir``
     entry, for live logs) gets the fit's ``losses.csv`` (per step) and, when the method evaluates per epoch,
     ``evaluations.csv``, the same from a fresh fit or a loaded checkpoint."""
     data_key = dataset_hash(train_cfg["dataset"]) if train_cfg.get("dataset") else None
@@ -116,7 +116,7 @@ def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir
     scene_garment = None if method.generic else (garment.vertices, garment.faces)  # one model for any garment: not keyed by it
     settings = method.settings_key()
     path = CHECKPOINTS.path(OmegaConf.to_container(cfg.method, resolve=True), *([settings] if settings is not None else []), train_cfg, data_key, scene_garment,
-                            body_key(data.body), OmegaConf.to_container(cfg.material, resolve=True), prefix=cfg.method.name, suffix=".pt")  # fmt: skip
+                            body_key(method.trained_body(data.body)), OmegaConf.to_container(cfg.material, resolve=True), prefix=cfg.method.name, suffix=".pt")  # fmt: skip
     state = CHECKPOINTS.load(path, partial(torch.load, map_location="cpu", weights_only=False), force=bool(cfg.force))
     if state is not None:
         method.bind(data.body, data.material)

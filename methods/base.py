@@ -82,6 +82,12 @@ class DrapingMethod(ABC):
         key so that changing a default retrains; None (the default) when ``cfg`` says it all."""
         return None
 
+    def trained_body(self, run_body):
+        """The body model a trained state is fitted to, part of the checkpoint key: the run's body (the
+        default); a method that trains on a body of its own returns that one, so one checkpoint serves runs on
+        any body."""
+        return run_body
+
     def state_dict(self) -> dict[str, Any]:
         """Learned state (tensors and plain values); empty for methods with nothing to learn."""
         return {}

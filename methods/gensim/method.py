@@ -116,15 +116,20 @@ class GenSim(DrapingMethod):
         return G + delta, delta
 
     # ------------------------------------------------------------------ training
+    def trained_body(self, run_body):
+        """``method.params.train.body`` when set (PEN's features do not depend on the body mesh, so the
+        training frames may be posed on a cheaper body), else the run's body."""
+        from drapebench.body import load_body
+
+        name = self.p["train"]["body"]
+        return run_body if name is None else load_body(name, dtype=run_body.dtype, device=run_body.device)
+
     def fit(self, data, train_cfg=None) -> FitReport:
         """Train PEN once on the training garments of ``method.params.train`` (see ``methods/gensim/config.py``)
         posed on random motions and body shapes, with the unsupervised losses of Eq. 9."""
-        from drapebench.body import load_body
-
         self.bind(data.body, data.material)
         run_body = self.body
-        if self.p["train"]["body"] is not None:  # train on another body; PEN's features do not depend on its mesh
-            self.body = load_body(self.p["train"]["body"], dtype=run_body.dtype, device=run_body.device)
+        self.body = self.trained_body(run_body)
         train_cfg = dict(train_cfg or {})
         log_dir = train_cfg.pop("log_dir", None)
         train_cfg.pop("dataset", None)  # GenSim builds its own training frames (below)

@@ -237,6 +237,19 @@ def test_one_model_drapes_any_garment_and_round_trips_its_state(trained, body_lo
         other.load_state_dict(m.state_dict())
 
 
+def test_a_fixed_training_body_makes_one_checkpoint_for_every_run_body(body_lowres):
+    import methods
+    from drapebench.cache import body_key
+
+    class OtherBody:  # a run body that is not the training body
+        dtype, device = torch.float32, torch.device("cpu")
+
+    fixed = methods.get("gensim")({**TINY, "train": {**TINY["train"], "body": "anny_lowres"}})
+    assert body_key(fixed.trained_body(OtherBody())) == body_key(body_lowres)  # the checkpoint key's body
+    run = OtherBody()
+    assert methods.get("gensim")(TINY).trained_body(run) is run  # no train.body: trains on the run's body
+
+
 def test_unknown_parameters_are_named():
     import methods
 
