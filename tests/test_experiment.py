@@ -254,6 +254,8 @@ def test_ms_per_frame_of_a_cached_drape_is_the_original_computation_not_the_load
 
     assert drape_ms_per_frame({"simulate": 2000.0, "cache_load": 5.0}, drape_s=0.005, n_frames=10) == pytest.approx(200.0)
     assert drape_ms_per_frame({"rollout": 30.0}, drape_s=0.04, n_frames=10) == pytest.approx(4.0)
+    assert drape_ms_per_frame({"setup": 1500.0, "network": 5.0}, drape_s=1.51, n_frames=10) == pytest.approx(1.0)  # set-up is not per frame
+    assert drape_ms_per_frame({"setup": 1500.0, "network": 5.0, "cache_load": 2.0}, drape_s=0.002, n_frames=10) == pytest.approx(0.5)
     with pytest.raises(ValueError, match="n_frames"):
         drape_ms_per_frame({}, drape_s=0.0, n_frames=0)
 

@@ -206,6 +206,7 @@ class GAPS(DrapingMethod):
             raise RuntimeError("gaps: not trained; call fit() or load_state_dict() first")
         if self.net.out.out_features != 3 * garment.n_vertices:
             raise ValueError(f"gaps: this model was trained for a {self.net.out.out_features // 3}-vertex garment, not {garment.n_vertices}")
+        t_setup = time.perf_counter()
         if getattr(self, "template", None) is None or content_hash(garment.vertices, garment.faces) != self.garment_key:
             self._setup(garment)  # per-garment constants (after load_state_dict); learned weights are kept
         t0 = time.perf_counter()
@@ -220,7 +221,7 @@ class GAPS(DrapingMethod):
             x = skin_then_translate(xc, self.weights, transforms, seq.trans.to(xc.dtype))
         t3 = time.perf_counter()
         ms = lambda a, b: (b - a) * 1e3  # noqa: E731
-        timings = {"body": ms(t0, t1), "network": ms(t1, t2), "skinning": ms(t2, t3)}
+        timings = {"setup": ms(t_setup, t0), "body": ms(t0, t1), "network": ms(t1, t2), "skinning": ms(t2, t3)}
         if self.p["collision_postprocess"]:  # SNUG's in-graph fix: push out along the body normal
             bv, bn = seq.vertices(self.body).to(x.dtype), seq.vertex_normals(self.body).to(x.dtype)
             nn = nearest_body_vertex(x, bv, bn, self.candidates)
