@@ -46,15 +46,23 @@ MM_PLOTS = ("penetration_mm", "vertex_error_mm")
 NORMAL_STEPS = 64  # shading normals are stored in steps of 1/64 per component (< 1 degree)
 
 
-def camera(body_vertices: np.ndarray, fov_y_deg: float = 45.0) -> tuple[np.ndarray, np.ndarray]:
+def camera(body_vertices: np.ndarray, fov_y_deg: float = 45.0, aspect: float = 0.9, margin: float = 1.08) -> tuple[np.ndarray, np.ndarray]:
     """Eye position and look target (m) of a 3D camera that frames every frame of ``body_vertices``
-    (T, Vb, 3; Z up, the body facing -Y) from the front-left, slightly above."""
-    lo, hi = body_vertices.reshape(-1, 3).min(0), body_vertices.reshape(-1, 3).max(0)
-    target = (lo + hi) / 2
-    radius = float(np.linalg.norm(hi - lo)) / 2
-    distance = 0.85 * radius / np.tan(np.radians(fov_y_deg) / 2)
-    direction = np.array([-0.45, -1.0, 0.2])
-    return target + distance * direction / np.linalg.norm(direction), target
+    (T, Vb, 3; Z up, the body facing -Y) from the front-left, slightly above: the nearest eye whose view
+    (vertical field ``fov_y_deg``, width / height ``aspect``, as the recording's 3D panel) holds every
+    vertex, pulled back by ``margin``."""
+    pts = body_vertices.reshape(-1, 3).astype(np.float64)
+    target = (pts.min(0) + pts.max(0)) / 2
+    back = np.array([-0.45, -1.0, 0.2])
+    back /= np.linalg.norm(back)  # from the target towards the eye
+    right = np.cross(-back, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, -back)
+    rel = pts - target
+    t = np.tan(np.radians(fov_y_deg) / 2)
+    # a vertex at depth (d - rel . back) from the eye is in view when |rel . up| <= depth t and |rel . right| <= depth t aspect
+    need = rel @ back + np.maximum(np.abs(rel @ up) / t, np.abs(rel @ right) / (t * aspect))
+    return target + margin * float(need.max()) * back, target
 
 
 def _blueprint(name: str, eye: np.ndarray, target: np.ndarray, hidden: list[str], plots: list[str]):

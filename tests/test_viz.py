@@ -55,10 +55,17 @@ def test_the_camera_sees_every_body_vertex_of_every_frame():
     rng = np.random.default_rng(0)
     body = rng.normal(size=(5, 200, 3)) * [0.2, 0.15, 0.5] + [0.0, 0.0, 1.0]
     body[-1] += [1.5, 0.0, 0.0]  # the body walks 1.5 m to the side in the last frame
-    eye, target = camera(body, fov_y_deg=45.0)
-    d, axis = body.reshape(-1, 3) - eye, (target - eye) / np.linalg.norm(target - eye)
-    angle = np.degrees(np.arccos(d @ axis / np.linalg.norm(d, axis=1)))
-    assert angle.max() < 22.5 and angle.max() > 10  # inside the field of view, not lost in the distance
+    eye, target = camera(body, fov_y_deg=45.0, aspect=0.9)
+    forward = (target - eye) / np.linalg.norm(target - eye)
+    right = np.cross(forward, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, forward)
+    d = body.reshape(-1, 3) - eye
+    depth = d @ forward
+    vertical, horizontal = np.abs(d @ up) / depth, np.abs(d @ right) / depth
+    t = np.tan(np.radians(22.5))
+    assert vertical.max() <= t and horizontal.max() <= t * 0.9  # every vertex inside the view
+    assert max(vertical.max() / t, horizontal.max() / (t * 0.9)) > 0.85  # and the body fills it, not lost in the distance
     assert eye[1] < target[1] and eye[2] > target[2]  # from the front (-Y) and above
 
 
