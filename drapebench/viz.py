@@ -112,6 +112,7 @@ def record_drape(
     stages: dict | None = None,
     metrics=None,
     name: str = "drape",
+    in_place: torch.Tensor | None = None,
 ) -> Path:
     """Write ``path`` (.rrd): body (T, Vb, 3) and garment (T, V, 3) meshes on a ``frame`` timeline
     (and ``time`` in seconds), shaded by per-frame vertex normals; triangles and flat colours are
@@ -122,8 +123,20 @@ def record_drape(
     points ``stages/<name>`` at those vertices of the first mesh stage (yellow). ``metrics`` (a
     per-frame DataFrame with a ``frame`` column, the run's frames.csv) are plotted beside the 3D view
     as ``metrics/<name>`` time series. A ``legend`` text entity says what the colours mean. The view
-    opens on the ``frame`` timeline with a camera that frames the whole body."""
+    opens on the ``frame`` timeline with a camera that frames the whole body. ``in_place`` (T, 3), the
+    root translation (m), has its horizontal part removed from every mesh: the body walks in place and the
+    camera stays close (the metrics are computed on world positions)."""
     import rerun as rr
+
+    legend = LEGEND
+    if in_place is not None:
+        shift = torch.zeros(in_place.shape[0], 1, 3, dtype=body_vertices.dtype)
+        shift[:, 0, :2] = in_place[:, :2].to(body_vertices.dtype)
+        body_vertices = body_vertices - shift
+        garment_vertices = garment_vertices - shift.to(garment_vertices.dtype)
+        reference = None if reference is None else reference - shift.to(reference.dtype)
+        stages = {k: v - shift.to(v.dtype) if v.dim() == 3 else v for k, v in (stages or {}).items()}
+        legend += "\nThe body walks in place: the root's horizontal travel is removed from the view.\n"
 
     T = garment_vertices.shape[0]
     colors = strain_colors(garment_vertices.double(), garment_topology.to(dtype=torch.float64))
@@ -142,7 +155,7 @@ def record_drape(
     with atomic_write(path, mode=None) as tmp:
         stream.save(str(tmp), default_blueprint=blueprint)
         stream.log("/", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-        stream.log("legend", rr.TextDocument(LEGEND, media_type=rr.MediaType.MARKDOWN), static=True)
+        stream.log("legend", rr.TextDocument(legend, media_type=rr.MediaType.MARKDOWN), static=True)
         frames = np.arange(T)
         index = [rr.TimeColumn("frame", sequence=frames), rr.TimeColumn("time", duration=frames / fps)]
         _send_mesh(stream, "body", body_vertices, body_faces, index, albedo=(0.85, 0.75, 0.68, 1.0))
