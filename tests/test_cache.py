@@ -207,6 +207,9 @@ class _Method:
     def settings_key(self):
         return None
 
+    def trained_body(self, run_body):
+        return run_body
+
     def state_dict(self):
         return {"w": self.w}
 
