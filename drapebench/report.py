@@ -35,7 +35,9 @@ TABLES = {
     "gensim_table2": (["edge_mm", "smoothness", "eps_c", "vertex_error_mm"], "garment"),
     "gensim_ablation": (["eps_e", "edge_mm", "smoothness", "eps_c", "vertex_error_mm"], "garment"),
     "gensim_table1": (["eps_c", "vertex_error_mm"], "experiment"),
+    "gaps_generalisation": (["eps_e", "eps_a", "eps_c", "vertex_error_mm", "energy_j"], "scene"),
 }
+ENERGY_PARTS = ("energy_stvk", "energy_bending", "energy_gravity")  # summed into energy_j (J per frame)
 # what a table's empty cells mean, printed under it
 TABLE_NOTES = {
     "gensim_table1": "– : not run, the method trains one model per garment mesh and body (gaps, vae), so this column "
@@ -65,7 +67,20 @@ def collect(dirs) -> pd.DataFrame:
             rows.append(rec)
     if not rows:
         raise FileNotFoundError(f"no metrics.json below {', '.join(map(str, dirs))}; did the runs finish?")
-    return pd.DataFrame(rows)
+    return with_scene(with_energy(pd.DataFrame(rows)))
+
+
+def with_energy(df: pd.DataFrame) -> pd.DataFrame:
+    """``df`` with ``energy_j`` (J per frame) = StVK + bending + gravity energy where the runs have the three
+    (the collision penalty has no physical stiffness, so collisions are counted by eps_c instead)."""
+    if all(c in df for c in ENERGY_PARTS) and "energy_j" not in df:
+        df = df.assign(energy_j=df[list(ENERGY_PARTS)].sum(axis=1, min_count=len(ENERGY_PARTS)))
+    return df
+
+
+def with_scene(df: pd.DataFrame) -> pd.DataFrame:
+    """``df`` with a ``scene`` column, "<garment> <motion>", the column groups of a table over several motions."""
+    return df.assign(scene=df["garment"].astype(str) + " " + df["motion"].astype(str)) if {"garment", "motion"} <= set(df) else df
 
 
 def collect_failures(dirs) -> pd.DataFrame:
@@ -74,7 +89,7 @@ def collect_failures(dirs) -> pd.DataFrame:
     rows = []
     for d in map(Path, dirs):
         rows += [{**json.loads(f.read_text()), "run_dir": str(f.parent)} for f in _run_files(d, "failed.json")]
-    return pd.DataFrame(rows)
+    return with_scene(pd.DataFrame(rows))
 
 
 def mark_failures(t: pd.DataFrame, failed: pd.DataFrame, group: str = "garment") -> pd.DataFrame:

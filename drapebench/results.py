@@ -42,6 +42,7 @@ METRICS = {
     "vertex_error_mm": MetricInfo("err. (mm)", "mm", "lower", "mean distance to the reference drape"),
     "ms_per_frame": MetricInfo("ms/frame", "ms", "lower", "drape time per frame"),
     "train_s": MetricInfo("train (s)", "s", "lower", "training time"),
+    "energy_j": MetricInfo("energy (J)", "J", "lower, toward the reference's", "StVK + bending + gravity energy per frame"),
     "setup_s": MetricInfo("setup (s)", "s", "lower", "one-off per-garment set-up inside the drape (not in ms/frame)"),
 }
 

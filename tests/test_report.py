@@ -233,3 +233,22 @@ def test_generalisation_matrix_groups_columns_by_experiment_and_explains_empty_c
     assert "unseen_motion err. (mm)" in header and "other_body err. (mm)" in header
     lbs_row = next(line for line in md.splitlines() if line.startswith("| lbs"))
     assert lbs_row.rstrip(" |").endswith("–") and TABLE_NOTES["gensim_table1"] in md
+
+
+def test_energy_column_sums_the_physical_terms_and_scenes_split_motions(tmp_path):
+    import json
+    import shutil
+
+    from drapebench.report import collect
+
+    for i, (motion, parts) in enumerate([("walk", (0.1, 0.02, 0.3)), ("kick", (0.2, 0.01, 0.25))]):
+        d = tmp_path / f"{i}_lbs"
+        shutil.copytree(FIXTURES / "0_lbs_tshirt", d)
+        rec = {**json.loads((d / "metrics.json").read_text()), "motion": motion,
+               **dict(zip(("energy_stvk", "energy_bending", "energy_gravity"), parts)), "energy_collision": 5.0}
+        (d / "metrics.json").write_text(json.dumps(rec))
+    df = collect([tmp_path])
+    assert df["energy_j"].tolist() == pytest.approx([0.42, 0.46])  # the collision penalty (m^3) is not added
+    assert df["scene"].tolist() == ["tshirt walk", "tshirt kick"]
+    md = write_table([tmp_path], "gaps_generalisation", tmp_path / "g")[0].read_text()
+    assert "tshirt walk energy (J)" in md and "tshirt kick energy (J)" in md
