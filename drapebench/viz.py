@@ -130,12 +130,12 @@ def record_drape(
 
     legend = LEGEND
     if in_place is not None:
-        shift = torch.zeros(in_place.shape[0], 1, 3, dtype=body_vertices.dtype)
-        shift[:, 0, :2] = in_place[:, :2].to(body_vertices.dtype)
-        body_vertices = body_vertices - shift
-        garment_vertices = garment_vertices - shift.to(garment_vertices.dtype)
-        reference = None if reference is None else reference - shift.to(reference.dtype)
-        stages = {k: v - shift.to(v.dtype) if v.dim() == 3 else v for k, v in (stages or {}).items()}
+        shift = torch.zeros(in_place.shape[0], 1, 3, dtype=torch.float64)
+        shift[:, 0, :2] = in_place[:, :2].detach().cpu().double()
+        body_vertices = body_vertices - shift.to(body_vertices)
+        garment_vertices = garment_vertices - shift.to(garment_vertices)
+        reference = None if reference is None else reference - shift.to(reference)
+        stages = {k: v - shift.to(v) if v.dim() == 3 else v for k, v in (stages or {}).items()}
         legend += "\nThe body walks in place: the root's horizontal travel is removed from the view.\n"
 
     T = garment_vertices.shape[0]
