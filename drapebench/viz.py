@@ -65,6 +65,14 @@ def camera(body_vertices: np.ndarray, fov_y_deg: float = 45.0, aspect: float = 0
     return target + margin * float(need.max()) * back, target
 
 
+def walk_in_place(x: torch.Tensor, root_translation: torch.Tensor) -> torch.Tensor:
+    """Positions (T, N, 3) m with each frame's horizontal root translation (T, 3) m taken out (heights
+    kept): the view of a body walking in place."""
+    shift = torch.zeros_like(x[:, :1])
+    shift[..., :2] = root_translation[:, None, :2].to(shift)
+    return x - shift
+
+
 def _blueprint(name: str, eye: np.ndarray, target: np.ndarray, hidden: list[str], plots: list[str]):
     """The view a recording opens on: the 3D scene framed by ``eye``/``target`` beside the per-frame
     metric plots and the colour legend, on the ``frame`` timeline."""
@@ -130,12 +138,9 @@ def record_drape(
 
     legend = LEGEND
     if in_place is not None:
-        shift = torch.zeros(in_place.shape[0], 1, 3, dtype=torch.float64)
-        shift[:, 0, :2] = in_place[:, :2].detach().cpu().double()
-        body_vertices = body_vertices - shift.to(body_vertices)
-        garment_vertices = garment_vertices - shift.to(garment_vertices)
-        reference = None if reference is None else reference - shift.to(reference)
-        stages = {k: v - shift.to(v) if v.dim() == 3 else v for k, v in (stages or {}).items()}
+        body_vertices, garment_vertices = walk_in_place(body_vertices, in_place), walk_in_place(garment_vertices, in_place)
+        reference = None if reference is None else walk_in_place(reference, in_place)
+        stages = {k: walk_in_place(v, in_place) if v.dim() == 3 else v for k, v in (stages or {}).items()}
         legend += "\nThe body walks in place: the root's horizontal travel is removed from the view.\n"
 
     T = garment_vertices.shape[0]

@@ -69,6 +69,18 @@ def test_the_camera_sees_every_body_vertex_of_every_frame():
     assert eye[1] < target[1] and eye[2] > target[2]  # from the front (-Y) and above
 
 
+def test_walk_in_place_takes_out_the_horizontal_travel_only():
+    from drapebench.viz import walk_in_place
+
+    T = 5
+    trans = torch.stack([torch.zeros(T), -0.5 * torch.arange(T), 0.02 * torch.arange(T)], -1)  # walking along -Y, bobbing
+    x = torch.tensor([[0.1, 0.2, 1.0], [0.0, -0.1, 0.5]], dtype=torch.float64)[None] + trans[:, None].double()
+    still = walk_in_place(x, trans)
+    assert still.dtype == torch.float64
+    assert torch.allclose(still[..., :2], x[:1, :, :2].expand(T, -1, -1))  # no horizontal travel left
+    assert torch.equal(still[..., 2], x[..., 2])  # heights untouched
+
+
 def test_method_stages_are_recorded_as_their_own_entities(tmp_path):
     v, f = SQUARE
     topo = get_topology(v, f)
