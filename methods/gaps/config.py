@@ -27,6 +27,7 @@ METHOD_DEFAULTS = dict(
     kext="collision",  # collision | one
     collision_weight=250.0,
     collision_eps=2e-3,
+    collision_distance="surface",  # surface: exact signed distance to the body mesh | vertex: nearest body vertex (the code)
     bending="blend",  # blend | flat | template
     single_shape=False,  # NCS: train on the mean body only
     normalize_inputs=False,
@@ -36,7 +37,7 @@ METHOD_DEFAULTS = dict(
     collision_postprocess=False,  # SNUG's push-out at inference; off unless a config asks for it
     train=TRAIN_DEFAULTS,
 )
-CHOICES = dict(skinning=("rbf", "nearest", "smoothed"), kext=("collision", "one"), bending=("blend", "flat", "template"))
+CHOICES = dict(skinning=("rbf", "nearest", "smoothed"), collision_distance=("surface", "vertex"), kext=("collision", "one"), bending=("blend", "flat", "template"))
 
 
 def gaps_params(cfg: Mapping[str, Any] | None) -> dict:

@@ -1,8 +1,9 @@
 """GAPS's loss terms: each is a :mod:`drapebench.physics` energy times its weight, summed over the
 batch's frames and divided by the batch size B (as the GAPS code).
 
-Shapes: x (B*W, V, 3) draped vertices of B windows of W frames (m); ``nn`` the nearest body vertex of
-each (:class:`drapebench.geometry.proximity.NearestVertex`, (B*W, V) fields). Every function returns
+Shapes: x (B*W, V, 3) draped vertices of B windows of W frames (m); ``nn`` where each vertex meets
+the body: ``.point`` (B*W, V, 3), unit ``.normal`` (B*W, V, 3) and signed ``.distance`` (B*W, V) m
+(:class:`drapebench.geometry.sdf.SurfacePoint` or :class:`drapebench.geometry.proximity.NearestVertex`). Every function returns
 a scalar tensor (J, or the energy's unit times its weight).
 """
 
@@ -39,7 +40,7 @@ def gravity(x: torch.Tensor, topo, material, batch_size: int) -> torch.Tensor:
 
 
 def collision(x: torch.Tensor, nn, batch_size: int, weight: float, eps: float) -> torch.Tensor:
-    """weight x cubic collision penalty (m^3) per window against the nearest body vertex, margin ``eps`` m."""
+    """weight x cubic collision penalty (m^3) per window against the body point ``nn.point`` along ``nn.normal``, margin ``eps`` m."""
     return weight * collision_energy(x, nn.point, nn.normal, eps).sum() / batch_size
 
 

@@ -60,6 +60,7 @@ from drapebench.body.skinning import nearest_body_vertices, nearest_weights, ski
 from drapebench.cache import content_hash
 from drapebench.geometry.ops import vertex_normals
 from drapebench.geometry.proximity import culled_body_vertices, nearest_body_vertex
+from drapebench.geometry.sdf import closest_body_point
 from drapebench.train import Objective, train, train_config
 from methods.base import DrapeResult, DrapingMethod, FitReport
 from methods.gaps import losses
@@ -192,11 +193,21 @@ class GAPS(DrapingMethod):
         delta, _ = self.net(self._inputs(betas, pose, vel), h0)
         xc = self._canonical(delta, betas).reshape(B * W, -1, 3)
         x = skin_then_translate(xc, self.weights, out.transforms, tr.reshape(B * W, 3))  # (B*W, V, 3)
-        nn = nearest_body_vertex(x, out.vertices, normals, self.candidates)
+        nn = self._body_contact(x, out.vertices, normals)
         terms, k_ext = losses.loss_terms(x, W, nn, self.topology, self.material, p, at.epoch, self.bend_blend)
         if k_ext is not None:
             self.last_kext_max = float(k_ext.max())
         return terms
+
+    def _body_contact(self, x: torch.Tensor, body_vertices: torch.Tensor, body_normals: torch.Tensor):
+        """Where each garment vertex x (B, V, 3) m meets the posed body (body_vertices, body_normals
+        (B, Vb, 3)): ``.point``, unit ``.normal`` and signed ``.distance`` (m, negative inside), for the
+        collision term, k_ext and the push-out. ``collision_distance`` "surface": the closest point of
+        the body mesh and the exact signed distance (:mod:`drapebench.geometry.sdf`); "vertex": the
+        nearest body vertex and its normal (the GAPS/SNUG code)."""
+        if self.p["collision_distance"] == "surface":
+            return closest_body_point(x.detach(), body_vertices.detach(), self.body.faces)
+        return nearest_body_vertex(x, body_vertices, body_normals, self.candidates)
 
     # ------------------------------------------------------------------ inference
     def drape(self, garment, seq) -> DrapeResult:
@@ -224,7 +235,7 @@ class GAPS(DrapingMethod):
         timings = {"setup": ms(t_setup, t0), "body": ms(t0, t1), "network": ms(t1, t2), "skinning": ms(t2, t3)}
         if self.p["collision_postprocess"]:  # SNUG's in-graph fix: push out along the body normal
             bv, bn = seq.vertices(self.body).to(x.dtype), seq.vertex_normals(self.body).to(x.dtype)
-            nn = nearest_body_vertex(x, bv, bn, self.candidates)
+            nn = self._body_contact(x, bv, bn)
             x = x + torch.relu(self.p["collision_eps"] - nn.distance)[..., None] * nn.normal
             timings["postprocess"] = ms(t3, time.perf_counter())
         return DrapeResult(x.clone(), timings)

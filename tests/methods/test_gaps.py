@@ -7,7 +7,7 @@ import torch
 import methods
 from drapebench.body import make_sequence
 from drapebench.garments import make_garment
-from drapebench.geometry.proximity import nearest_body_vertex
+from drapebench.geometry.sdf import signed_distance
 from drapebench.physics import Material
 from drapebench.data import TrainData
 from methods.gaps.config import TRAIN_DEFAULTS
@@ -164,11 +164,39 @@ def test_collision_postprocess_only_when_asked(scene):
     fixed = m.drape(g, seq)
     assert "postprocess" in fixed.timings_ms and "postprocess" not in raw.timings_ms
     bv, bn = seq.vertices(body), seq.vertex_normals(body)
-    d_raw = nearest_body_vertex(raw.vertices, bv, bn, m.candidates).distance
-    d_fix = nearest_body_vertex(fixed.vertices, bv, bn, m.candidates).distance
+    d_raw = m._body_contact(raw.vertices, bv, bn).distance
+    d_fix = m._body_contact(fixed.vertices, bv, bn).distance
     moved = (fixed.vertices - raw.vertices).norm(dim=-1) > 0
     assert moved.any() and not moved[d_raw > 2e-3 + 1e-6].any()  # only vertices within eps of the body move
     assert (d_fix < 0).sum() <= (d_raw < 0).sum()
+
+
+def _set_up(body, g, cfg):
+    """An untrained GAPS bound to ``body`` with its constants for garment ``g``."""
+    m = methods.get("gaps")(cfg)
+    m.bind(body, Material())
+    m._setup(g)
+    return m
+
+
+def test_collision_distance_is_the_exact_body_surface_unless_vertex_is_asked(scene):
+    """The training's collision term, k_ext and the push-out read the exact signed distance to the body
+    mesh by default; "vertex" (the GAPS/SNUG code) reads the nearest body vertex, which on the coarse
+    body counts cloth lying just off the surface as inside."""
+    body, g, seqs = scene
+    seq = seqs[0]
+    bv, bn = seq.vertices(body)[:4], seq.vertex_normals(body)[:4]
+    lbs = methods.get("lbs")({})
+    lbs.bind(body, Material())
+    x = lbs.drape(g, seq).vertices[:4]
+    surface = _set_up(body, g, {})._body_contact(x, bv, bn)
+    exact = signed_distance(x, bv, body.faces, exact=True)
+    assert torch.allclose(surface.distance, exact, atol=1e-5)
+    assert torch.allclose(((x - surface.point) * surface.normal).sum(-1), surface.distance, atol=1e-5)
+    vertex = _set_up(body, g, {"collision_distance": "vertex"})._body_contact(x, bv, bn)
+    assert not torch.allclose(vertex.distance, exact, atol=1e-3)
+    with pytest.raises(ValueError, match="collision_distance must be one of"):
+        methods.get("gaps")({"collision_distance": "mesh"})
 
 
 def test_checkpoint_round_trip(scene):
