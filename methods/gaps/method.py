@@ -2,51 +2,9 @@
 collision-aware inextensibility, self-supervised by physics losses; plus the SNUG-like and
 NCS-like ablations as configurations of the same code.
 
-Choices where the paper is silent or differs from the public code (all configurable in ``method.params``,
-its ``train`` sub-dict, or the training budget ``conf/train``; defaults in ``methods/gaps/config.py``):
-
-* input per frame = [betas (S), pose axis-angle of all joints incl. the root (3J), root translation
-  velocity (3)], **not normalised** (the GAPS code; SNUG's shipped models normalise:
-  ``normalize_inputs: true``);
-* 4 GRU layers of 256 (tanh), a linear layer to V x 3 canonical displacements added to the template;
-  the output layer starts at zero (``zero_init_output``), so training starts from the skinned
-  template; the paper does not say, and Keras' default init starts tens of centimetres off it;
-* skinning weights from RBF body participation with the code's constant k = 0.25 (paper: 0.5),
-  trainable and unconstrained as in the code (``trainable_weights``); LBS uses the joint transforms
-  without the root translation, which is added afterwards, as in the code (``skin_then_translate``;
-  with unconstrained weights, translation inside the transforms would scale a sequence's distance
-  travelled by each weight row's sum);
-* training windows of 3 consecutive frames; GRU state drawn from N(0, 0.1^2) in training, zeros at
-  inference; strain/bending/gravity/collision/inextensibility summed over the 3 frames, inertia
-  once on the last frame against stop_gradient(2 x1 - x0); every term divided by the batch size;
-* loss weights: collision 250 (eps 2 mm), inextensibility 2e8, k_ext = 1 + min(10 d_c, 0.03) x
-  min(epoch, kext_ramp_epochs) with d_c = max(eps - d, 0) (paper: ramp over 100 epochs);
-* bending blends flat and template angles per edge by the min-max-normalised rest distance of the
-  edge to the body (paper Eq. 12);
-* no collision post-processing at inference unless ``collision_postprocess`` (SNUG's shipped
-  models push each vertex out along its nearest body vertex's normal by max(eps - d, 0));
-* Adam, lr 1e-3 for the first ``lr_switch_epoch`` (10) epochs, then 1e-4; ``lr_output_factor``
-  (default 1, the code) scales the output layer's rate: Adam moves every weight by about lr per
-  step, so from a zero output layer all V displacements move together by ~lr x sum|h| (about 1 cm
-  per step at lr 1e-4), which short CPU runs never recover from;
-* optional, off by default and on in ``train=cpu`` (none is in the paper or the code): ``ema_decay``
-  keeps an exponential moving average of the trained weights (TF's warm-up, decay
-  min(d, (1+n)/(10+n))) and uses it as the model; ``lr_decay_fraction`` decays the rate linearly
-  to 0 over that last fraction of the step (or ``max_minutes`` time) budget. Both remove the
-  per-step Adam noise that a short, small-batch run leaves in the V x 3 output (measured: edge
-  lengths jittered by about +-4.5 % around a correct mean, see ``conf/train/cpu.yaml``);
-  ``grad_clip`` scales each step's gradient to at most that global norm (not in the paper or the
-  code). Measured at the start of a tshirt run on train_small: windows of walk have gradient norms
-  17-46, of arm_raise up to 2,130 (a batch of 8 copies of one window), so in a batch of 8 the few
-  extreme windows set the direction and Adam's second moment (our reading; clipping at 20 took the
-  tshirt's held-out eps_e from 3.31 % to 2.56 % before ``skin_then_translate``; the preset now
-  gives 2.85 %); every step's norm is in the history (``grad_norm``, before clipping);
-* random body shapes, constant per window: beta_k ~ U(-r_k, r_k) on the first len(``beta_range``)
-  components, the rest 0. The code draws the first 4 SMPL betas from U(-2, 2). Our PCA betas are in
-  standard deviations of Anny's phenotype samples, whose first component scales the whole body
-  (measured on anny_lowres: +-2 spans 1.27-2.35 m of height and 31-127 l of volume), far beyond
-  the adult range SMPL's +-2 covers; so the default keeps +-0.5 on it (1.67-1.94 m) and the code's
-  +-2 on components 1-3 (body weight: beta_1 = -2 is +15 % volume, and proportions).
+The paper-to-code map and every choice where the paper is silent or differs from the public code
+(all configurable in ``method.params``, its ``train`` sub-dict, or the budget ``conf/train``):
+``methods/gaps/README.md``. Defaults: ``methods/gaps/config.py``.
 """
 
 from __future__ import annotations
