@@ -221,6 +221,11 @@ class GAPS(DrapingMethod):
                 "input_std": self.input_std, "params": dict(self.p), "garment_key": self.garment_key,
                 "n_in": self.n_in, "n_out": self.net.out.out_features}  # fmt: skip
 
+    def settings_key(self) -> dict:
+        """The resolved parameters (code defaults included): a changed default retrains instead of loading a
+        checkpoint trained with the old one."""
+        return self.p
+
     def load_state_dict(self, state) -> None:
         if not state:
             return

@@ -116,6 +116,11 @@ class GenSim(DrapingMethod):
         return G + delta, delta
 
     # ------------------------------------------------------------------ training
+    def settings_key(self) -> dict:
+        """The resolved parameters (code defaults included): a changed default retrains instead of loading a
+        checkpoint trained with the old one."""
+        return self.p
+
     def trained_body(self, run_body):
         """``method.params.train.body`` when set (PEN's features do not depend on the body mesh, so the
         training frames may be posed on a cheaper body), else the run's body."""

@@ -195,6 +195,7 @@ def test_collision_distance_is_the_exact_body_surface_unless_vertex_is_asked(sce
     assert torch.allclose(((x - surface.point) * surface.normal).sum(-1), surface.distance, atol=1e-5)
     vertex = _set_up(body, g, {"collision_distance": "vertex"})._body_contact(x, bv, bn)
     assert not torch.allclose(vertex.distance, exact, atol=1e-3)
+    assert _set_up(body, g, {}).settings_key()["collision_distance"] == "surface"  # in the checkpoint key
     with pytest.raises(ValueError, match="collision_distance must be one of"):
         methods.get("gaps")({"collision_distance": "mesh"})
 
