@@ -260,9 +260,9 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     t = time.perf_counter()
     body = load_body(cfg.body.name, device=cfg.device)
     material = Material.from_config(OmegaConf.to_container(cfg.material, resolve=True))
-    garment = garment_from_config(OmegaConf.to_container(cfg.garment, resolve=True), body)
     m = cfg.motion
     seq = sequence_from_config(OmegaConf.to_container(m, resolve=True), body)
+    garment = garment_from_config(OmegaConf.to_container(cfg.garment, resolve=True), body, seq.betas)
     stages["scene_s"] = time.perf_counter() - t
     log.info("scene: %s (%d vertices) on %s, %s (%d frames) in %.1f s", garment.kind, garment.n_vertices, body.name, seq.name,
              seq.n_frames, stages["scene_s"])  # fmt: skip

@@ -30,6 +30,8 @@ class GarmentConf:
     params: Dict[str, Any] = field(default_factory=dict)
     path: Optional[str] = None  # garment=obj: the .obj/.ply file (metres, on the rest-pose body)
     pins: Optional[List[int]] = None  # garment=obj: vertex indices held to the body; None: found automatically
+    betas: Any = None  # body shape the garment is made on: None = mean body (each method and the reference transfer
+    #                    it to the sequence's shape), "motion" = the sequence's betas, or a list of betas
 
 
 @dataclass

@@ -223,18 +223,35 @@ def make_garment(kind: str, body, betas=None, seed: int = 0, name: str | None = 
     )  # fmt: skip
 
 
-def garment_from_config(g: dict, body) -> Garment:
-    """The garment a config's ``garment`` node (a dict: kind, seed, params, path, pins) describes: kind ``obj``
-    loads the user's file ``path`` (:func:`load_garment`; ``pins`` given or found), any other kind is built
-    (:func:`make_garment`). Raises ValueError naming a key the chosen kind does not read."""
+def garment_from_config(g: dict, body, sequence_betas=None) -> Garment:
+    """The garment a config's ``garment`` node (a dict: kind, seed, params, path, pins, betas) describes: kind
+    ``obj`` loads the user's file ``path`` (:func:`load_garment`; ``pins`` given or found), any other kind is
+    built (:func:`make_garment`) on the body shape ``betas``: None = the mean body, ``"motion"`` = the
+    sequence's ``sequence_betas`` (S',), or a list. Raises ValueError naming a key the chosen kind does not
+    read or an invalid ``betas``."""
     if g["kind"] == "obj":
         if g.get("params"):
             raise ValueError(f"garment.params {sorted(g['params'])} are parameters of the built kinds; garment=obj reads path and pins")
         if g.get("path") in (None, "???"):
             raise ValueError("garment=obj needs the file: garment.path=/path/to/garment.obj (or .ply)")
+        if g.get("betas") is not None:
+            raise ValueError("garment.betas is read by the built kinds; a garment=obj file is made on the mean body")
         return load_garment(g["path"], body, kind="obj", pins=g.get("pins"))
     for key in ("path", "pins"):
         if g.get(key) is not None:
             raise ValueError(f"garment.{key} is read only by garment=obj (a user's file), not by garment={g['kind']}; "
                              f"use python run.py garment=obj garment.path=/path/to/garment.obj")  # fmt: skip
-    return make_garment(g["kind"], body, seed=int(g.get("seed", 0)), **g.get("params", {}))
+    return make_garment(g["kind"], body, betas=_garment_betas(g.get("betas"), sequence_betas), seed=int(g.get("seed", 0)),
+                        **g.get("params", {}))  # fmt: skip
+
+
+def _garment_betas(betas, sequence_betas):
+    """The body shape (list of floats, or None = mean) a config's ``garment.betas`` names."""
+    if betas is None:
+        return None
+    if betas == "motion":
+        return None if sequence_betas is None else [float(b) for b in sequence_betas]
+    if isinstance(betas, (list, tuple)) and all(isinstance(b, (int, float)) and not isinstance(b, bool) for b in betas):
+        return [float(b) for b in betas]
+    raise ValueError(f"garment.betas must be null (the mean body), motion (the sequence's body shape) or a list of numbers, "
+                     f"not {betas!r}; e.g. garment.betas=motion or garment.betas=[0.0,2.0]")

@@ -202,6 +202,7 @@ def loft_field(
     if not in_win.any():
         raise ValueError("no valid body slice in the hip window; is the body in its rest pose?")
     widest = np.flatnonzero(in_win)[np.argmax(np.nanmean(R[in_win], 1))]
+    R[0] = np.where(np.isfinite(R[0]), R[0], R[np.isfinite(R).all(1)][0])  # slices without a hull copy the one above
     # above the widest slice: follow the body; below: running max downwards plus flare
     for k in range(1, len(z_levels)):
         if k > widest:
@@ -210,7 +211,6 @@ def loft_field(
             R[k] = np.maximum(base, cur) + flare * dz
         elif not np.isfinite(R[k]).all():
             R[k] = R[k - 1]
-    R[0] = np.where(np.isfinite(R[0]), R[0], R[np.isfinite(R).all(1)][0])
     R = gaussian_filter1d(gaussian_filter1d(R, 2.0, axis=1, mode="wrap"), 1.5, axis=0, mode="nearest")
     xs, ys, zs = grid.axes()
     rx, ry = np.meshgrid(xs - centre_xy[0], ys - centre_xy[1], indexing="ij")  # (nx, ny) columns

@@ -62,13 +62,14 @@ def face_components(F: np.ndarray, n_vertices: int) -> np.ndarray:
 
 
 def keep_component_near(V: np.ndarray, F: np.ndarray, seed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Keep the connected component with the vertex nearest ``seed`` (drops hands, head, feet)."""
+    """Keep the connected component with the face vertex nearest ``seed`` (drops hands, head, feet);
+    vertices no face uses are not candidates. Raises ValueError when ``F`` has no faces."""
+    if len(F) == 0:
+        raise ValueError("the mesh has no faces to keep")
     lab = face_components(F, len(V))
-    nearest_v = np.argmin(np.linalg.norm(V - seed, axis=1))
-    faces_of_v = np.flatnonzero((F == nearest_v).any(1))
-    if len(faces_of_v) == 0:
-        raise ValueError("seed vertex is not part of any face")
-    return remove_unreferenced(V, F[lab == lab[faces_of_v[0]]])
+    used = np.unique(F)
+    nearest_v = used[np.argmin(np.linalg.norm(V[used] - seed, axis=1))]
+    return remove_unreferenced(V, F[lab == lab[np.flatnonzero((F == nearest_v).any(1))[0]]])
 
 
 def smooth_boundaries(V: np.ndarray, F: np.ndarray, iterations: int = 2) -> np.ndarray:

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 import torch
 
-from drapebench.garments import GARMENT_KINDS, load_garment, make_garment
+from drapebench.garments import GARMENT_KINDS, garment_from_config, load_garment, make_garment
 from drapebench.garments.factory import EXPECTED_LOOPS, garment_params
 from drapebench.garments.validate import cross_sections
 
@@ -88,6 +88,16 @@ def test_every_kind_resolution_and_shape_is_valid(kind, resolution, betas, body_
     assert 500 < g.n_vertices < 20000
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", GARMENT_KINDS)
+@pytest.mark.parametrize("component,value", [(0, -3.0), (0, 3.0), (1, -3.0), (1, 3.0)])
+def test_every_kind_is_valid_at_the_ends_of_the_shape_space(kind, component, value, body_full):
+    shape = torch.zeros(10)
+    shape[component] = value
+    g = make_garment(kind, body_full, betas=shape)  # raises with the report if invalid
+    assert 500 < g.n_vertices < 20000
+
+
 def test_the_gallery_draws_every_garment_config():
     from drapebench.cache import PROJECT_ROOT
     from drapebench.garments.gallery import garment_configs
@@ -96,3 +106,23 @@ def test_the_gallery_draws_every_garment_config():
     assert set(configs) == {f.stem for f in (PROJECT_ROOT / "conf" / "garment").glob("*.yaml")} - {"obj"}  # obj: a user's file
     assert configs["skirt_flared"] == ("skirt", {"flare": 0.3}) and list(configs)[:2] == ["tshirt", "tank"]
     assert list(configs).index("skirt") < list(configs).index("skirt_flared") < list(configs).index("dress")
+
+
+def test_keep_component_near_ignores_vertices_no_face_uses():
+    from drapebench.garments.mesh_ops import keep_component_near
+
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [5, 0, 0], [6, 0, 0], [5, 1, 0], [5.2, 0.2, 0]], dtype=float)
+    F = np.array([[0, 1, 2], [3, 4, 5]])  # vertex 6, nearest the seed, is in no face
+    kept, faces = keep_component_near(V, F, np.array([5.2, 0.2, 0.0]))
+    assert len(faces) == 1 and np.allclose(kept, V[3:6])
+
+
+def test_a_garment_made_for_the_sequence_shape_at_the_end_of_the_shape_space(body_lowres):
+    """garment.betas=motion builds on the sequence's betas; at beta1 = +3 (heavy) the skirt's loft once had
+    slices without a body hull above the waist, which left NaN vertices."""
+    cfg = {"kind": "skirt", "seed": 0, "params": {}, "betas": "motion"}
+    g = garment_from_config(cfg, body_lowres, [0.0, 3.0])  # raises with the validation report if invalid
+    assert g.betas[:2].tolist() == [0.0, 3.0] and torch.isfinite(g.vertices).all()
+    assert garment_from_config({**cfg, "betas": None}, body_lowres, [0.0, 3.0]).betas.abs().sum() == 0
+    with pytest.raises(ValueError, match="garment.betas must be null .* or a list of numbers"):
+        garment_from_config({**cfg, "betas": "heavy"}, body_lowres)
