@@ -44,6 +44,27 @@ TABLE_NOTES = {
     "would need a new model rather than test the trained one.",
 }
 REFERENCE_METHOD = "pbs"  # the physics reference run as a method: the speed-ups of runtime_vs_error are over it
+# the reference's distance from itself, run as methods against the vbd reference (conf/method/<name>.yaml)
+FLOOR_METHODS = {"pbs_style3d": "the other solver (Style3D)", "pbs_half_dt": "vbd at half the time step (20 substeps)"}
+
+
+def reference_floor(df: pd.DataFrame, group: str = "garment") -> str:
+    """The note under a vertex-error table on how far the reference is from itself: the ``FLOOR_METHODS`` rows'
+    vertex error per ``group`` value, or the command that measures it when the runs have none ("" when the
+    runs have no vertex error)."""
+    if "vertex_error_mm" not in df or not df["vertex_error_mm"].notna().any():
+        return ""
+    floor = df[df["method"].isin(list(FLOOR_METHODS)) & df["vertex_error_mm"].notna()]
+    head = ("Reference floor: a method's vertex error means little below the reference's distance from itself, "
+            "its own rows")  # fmt: skip
+    if floor.empty:
+        return (f"Reference floor: not measured for these scenes; run the table's sweep with "
+                f"`method={','.join(FLOOR_METHODS)}` (the reference drape computed by {' and by '.join(FLOOR_METHODS.values())}).")
+    parts = []
+    for method, rows in floor.groupby("method", sort=False):
+        cells = ", ".join(f"{k} {v:.1f}" for k, v in rows.groupby(group, sort=False)["vertex_error_mm"].mean().items())
+        parts.append(f"`{method}`, {FLOOR_METHODS[method]}: {cells} mm")
+    return f"{head}: " + "; ".join(parts) + "."
 
 
 def _job_order(path: Path) -> list:
@@ -342,6 +363,8 @@ def write_table(dirs, name: str, out: Path, command: str | None = None, methods:
     notes = "".join(f"\n- {r.method} on {r[group]} failed: {r.message}" for _, r in failed.iterrows()) if len(failed) else ""
     if name in TABLE_NOTES:
         notes += "\n" + TABLE_NOTES[name]
+    if "vertex_error_mm" in metrics and reference_floor(df, group):
+        notes += "\n\n" + reference_floor(df, group)
     if name == "runtime_vs_error" and speedups(df):
         notes += "\n\n" + speedups(df)
     out = Path(out)
