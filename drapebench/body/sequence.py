@@ -71,17 +71,32 @@ class BodySequence:
     def dt(self) -> float:
         return 1.0 / self.fps
 
+    def held_frames(self) -> torch.Tensor:
+        """(T,) long: for each frame, the first frame of the run of identical frames (same pose and root
+        translation) it belongs to; frame t itself where the body moved. A held pose is posed once."""
+        same = ((self.poses[1:] == self.poses[:-1]).flatten(1).all(1) & (self.trans[1:] == self.trans[:-1]).all(1))
+        new_run = torch.cat([torch.ones(1, dtype=torch.bool), ~same])
+        starts = torch.nonzero(new_run).squeeze(1)
+        return starts[torch.cumsum(new_run.long(), 0) - 1]
+
     def body_output(self, body: BodyModel) -> BodyOutput:
-        """Posed body for every frame (cached per body and dtype): vertices (T,V,3), joints, transforms."""
+        """Posed body for every frame (cached per body and dtype): vertices (T,V,3), joints, transforms.
+        Frames that hold the previous frame's pose are not posed again (:meth:`held_frames`)."""
         key = _key("out", body)
         if key not in self._cache:
             self._check_joints(body)
+            held = self.held_frames()
+            distinct, inverse = torch.unique(held, return_inverse=True)
             with torch.no_grad():
-                self._cache[key] = body.forward(
+                out = body.forward(
                     body.full_betas(self.betas)[None],
-                    self.poses.to(body.device, body.dtype),
-                    self.trans.to(body.device, body.dtype),
+                    self.poses[distinct].to(body.device, body.dtype),
+                    self.trans[distinct].to(body.device, body.dtype),
                 )
+            if len(distinct) < self.n_frames:
+                inverse = inverse.to(out.joints.device)
+                out = BodyOutput(*(None if t is None else t[inverse] for t in (out.vertices, out.joints, out.transforms, out.rest_joints)))
+            self._cache[key] = out
         return self._cache[key]
 
     def _check_joints(self, body: BodyModel) -> None:

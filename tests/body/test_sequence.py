@@ -81,3 +81,13 @@ def test_sequence_input_errors(body_lowres):
         seq.vertices(body_lowres)
     with pytest.raises(ValueError, match="n_transition"):
         BodySequence("x", "walk", torch.zeros(10), torch.zeros(3, 22, 3), torch.zeros(3, 3), n_transition=4)
+
+
+def test_a_held_pose_is_posed_once_and_every_frame_matches_posing_it_afresh(body_lowres):
+    seq = make_sequence("static", 20, seed=0, transition=5)
+    held = seq.held_frames()
+    assert held[-1] == held[10] and len(torch.unique(held)) < seq.n_frames  # the stance is held after the transition
+    out = body_lowres.forward(body_lowres.full_betas(seq.betas)[None], seq.poses, seq.trans)
+    assert torch.equal(seq.vertices(body_lowres), out.vertices) and torch.equal(seq.transforms(body_lowres), out.transforms)
+    walk = make_sequence("walk", 8, seed=0, transition=0)
+    assert torch.equal(walk.held_frames(), torch.arange(walk.n_frames))  # a moving body: every frame its own
