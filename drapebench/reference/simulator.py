@@ -34,12 +34,13 @@ import re
 import time
 from dataclasses import dataclass, field
 from importlib import metadata
+from pathlib import Path
 
 import numpy as np
 import torch
 
 from drapebench.body.skinning import nearest_body_vertices, transfer_shape
-from drapebench.cache import Cache, body_key
+from drapebench.cache import Cache, atomic_write, body_key
 from drapebench.errors import DrapeFailed
 from drapebench.physics.material import Material
 from drapebench.progress import progress as progress_bar
@@ -55,7 +56,8 @@ FEET_BAND = 0.15  # a garment centroid in this lowest fraction of the body's hei
 
 
 class SimulationDiverged(DrapeFailed):
-    """The reference simulation blew up (NaN, runaway speed or torn elements); nothing was cached.
+    """The reference simulation blew up (NaN, runaway speed or torn elements); no drape was cached, only a
+    record of the failure, so the same simulation fails at once until ``force=true``.
 
     Attributes: garment, sequence (names), frame (sequence frame, negative while settling), reason;
     attempts (substeps and failure of each try, see :func:`simulate_record`) once retries are done.
@@ -328,6 +330,39 @@ def _run_with_retries(garment, seq, body, material: Material, settings: SimSetti
     raise err
 
 
+def _failure_path(path: Path) -> Path:
+    return path.with_name(path.stem + ".failed.json")
+
+
+def _record_failure(path: Path, err: SimulationDiverged) -> None:
+    """Remember that the simulation cached at ``path`` failed at every substep count tried (the error's
+    arguments and attempts, no drape), so the next run with the same key fails at once."""
+    garment, sequence, frame, n_frames, reason, settings = err._args
+    record = {"error": type(err).__name__, "garment": garment, "sequence": sequence, "frame": frame, "n_frames": n_frames,
+              "reason": reason, "settings": settings.to_dict(), "attempts": getattr(err, "attempts", None)}  # fmt: skip
+    with atomic_write(_failure_path(path), "w") as f:
+        json.dump(record, f)
+
+
+def _raise_recorded_failure(path: Path) -> None:
+    """Raise the failure recorded for the simulation cached at ``path``, if any (``force=true`` runs it again);
+    an unreadable record is removed with a warning."""
+    failure = _failure_path(path)
+    if not failure.exists():
+        return
+    try:
+        r = json.loads(failure.read_text())
+        kind = {"SimulationDiverged": SimulationDiverged, "GarmentLeftBody": GarmentLeftBody}[r["error"]]
+        err = kind(r["garment"], r["sequence"], r["frame"], r["n_frames"], r["reason"], SimSettings(**r["settings"]))
+    except (ValueError, KeyError, TypeError) as e:
+        log.warning("removing the unreadable failure record %s (%s)", failure, e)
+        failure.unlink(missing_ok=True)
+        return
+    err.attempts = r["attempts"]
+    log.warning("this simulation failed before with the same settings (%s); not run again (force=true runs it)", failure.name)
+    raise err
+
+
 def simulate_record(
     garment,
     seq,
@@ -354,7 +389,14 @@ def simulate_record(
         verts, meta = hit
         return SimulationRecord(torch.from_numpy(verts), meta["timings_s"], cfg, True, time.perf_counter() - t0,
                                 str(path), meta["stats"])  # fmt: skip
-    verts, timings, stats = _run_with_retries(garment, seq, body, material, cfg, progress)
+    if cache and not force:
+        _raise_recorded_failure(path)
+    try:
+        verts, timings, stats = _run_with_retries(garment, seq, body, material, cfg, progress)
+    except SimulationDiverged as err:
+        if cache:
+            _record_failure(path, err)
+        raise
     if cache:
         meta = {"timings_s": timings, "stats": stats, "settings": cfg.to_dict(), "garment": garment.name,
                 "sequence": seq.name, "material": material.to_dict()}  # fmt: skip
@@ -390,7 +432,9 @@ def simulate(
         substeps, iterations, settle_frames: override the solver defaults (None keeps them); other
             :class:`SimSettings` fields (pins, self_contact, contact_ke, damping, device, ...) as keywords.
         cache: read/write ``data/cache/reference`` (keyed by garment, sequence, body model, material,
-            settings, device kind and Newton/warp versions); only complete successful runs are stored.
+            settings, device kind and Newton/warp versions); only complete successful runs are stored. A
+            simulation that failed at every substep count leaves a ``.failed.json`` record instead, and the
+            same call raises that failure at once (``force=True`` in :func:`simulate_record` runs it again).
         progress: show a frames/s progress bar (quiet under CI or without a TTY).
         dtype: output dtype (float32 default).
     Raises:

@@ -62,12 +62,26 @@ def test_cache_key_follows_material_solver_and_settings(scene, body_lowres, stub
     assert len(stub) == 5
 
 
-def test_a_diverged_run_raises_and_leaves_no_cache_entry(scene, body_lowres, stub, tmp_path):
+def test_a_diverged_run_caches_no_drape_and_its_recorded_failure_is_raised_at_once_until_forced(scene, body_lowres, stub, tmp_path):
     g, seq = scene
     with pytest.raises(SimulationDiverged, match=r"'skirt'.*frame 3 of 8.*substeps=") as err:
         simulate(g, seq, body_lowres, progress=False, max_speed=0.5)
     assert err.value.frame == 3 and err.value.garment == "skirt"
-    assert not list((tmp_path / "cache" / "reference").glob("*"))
+    cache = tmp_path / "cache" / "reference"
+    assert not list(cache.glob("*.npz")) and len(list(cache.glob("*.failed.json"))) == 1
+    runs = len(stub)
+    with pytest.raises(SimulationDiverged) as again:
+        simulate(g, seq, body_lowres, progress=False, max_speed=0.5)
+    assert len(stub) == runs and str(again.value) == str(err.value) and again.value.attempts == err.value.attempts
+    with pytest.raises(SimulationDiverged):
+        simulate_record(g, seq, body_lowres, progress=False, max_speed=0.5, force=True)
+    assert len(stub) > runs  # force runs it again
+    simulate(g, seq, body_lowres, progress=False, max_speed=0.6 + 0.5)  # other settings: another key, simulated
+    next(cache.glob("*.failed.json")).write_text("{not json")
+    runs = len(stub)
+    with pytest.raises(SimulationDiverged):  # an unreadable record is dropped and the simulation runs
+        simulate(g, seq, body_lowres, progress=False, max_speed=0.5)
+    assert len(stub) > runs
 
 
 def test_garment_inside_the_body_is_rejected(scene, body_lowres, monkeypatch, tmp_path):

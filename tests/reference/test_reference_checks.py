@@ -84,7 +84,7 @@ def test_a_bad_frame_fails_the_run_and_caches_nothing(scene, body_lowres, monkey
     with pytest.raises(error, match=match) as err:
         simulate_record(g, seq, body_lowres, Material(), settle_frames=SETTLE, retry_substeps=[], progress=False)
     assert steps == [10] and err.value.attempts == [{"substeps": 10, "failure": err.value.attempts[0]["failure"]}]
-    assert not list((tmp_path / "cache" / "reference").glob("*"))
+    assert not list((tmp_path / "cache" / "reference").glob("*.npz"))  # no drape; only the failure record
 
 
 def test_a_divergence_is_retried_with_a_smaller_step_and_recorded(scene, body_lowres, monkeypatch, tmp_path):
@@ -112,7 +112,7 @@ def test_when_every_attempt_fails_the_error_lists_them_and_survives_pickling(sce
     assert steps == [10, 20, 40] and [a["substeps"] for a in err.value.attempts] == [10, 20, 40]
     back = pickle.loads(pickle.dumps(err.value))
     assert type(back) is GarmentLeftBody and back.attempts == err.value.attempts and str(back) == str(err.value)
-    assert not list((tmp_path / "cache" / "reference").glob("*"))
+    assert not list((tmp_path / "cache" / "reference").glob("*.npz"))  # no drape; only the failure record
 
 
 def test_the_leave_body_rule(scene, body_lowres):
