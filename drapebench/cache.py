@@ -150,12 +150,14 @@ _BODY_KEYS: dict[int, tuple] = {}
 
 def body_key(body) -> str:
     """Content hash of a body model's arrays (template, shape and pose blend shapes, joint regressor,
-    skinning weights, faces, kinematic tree), memoised per object: the body in a cache key, never its name."""
+    skinning weights, faces, kinematic tree), memoised per object: the body in a cache key, never its name. Float
+    arrays are hashed as float32, so a body loaded in float64 has the key of the same body in float32."""
     hit = _BODY_KEYS.get(id(body))
     if hit is None or hit[0] is not body:
         parts = [body.v_template, body.shapedirs, body.J_regressor, body.weights, body.faces, list(body.parents)]
         if getattr(body, "posedirs", None) is not None:
             parts.append(body.posedirs)
+        parts = [p.float() if hasattr(p, "is_floating_point") and p.is_floating_point() else p for p in parts]
         hit = (body, content_hash(*parts))
         _BODY_KEYS[id(body)] = hit
     return hit[1]

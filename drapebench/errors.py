@@ -14,3 +14,13 @@ class DrapeFailed(RuntimeError):
 
 class TrainingDiverged(DrapeFailed):
     """Training produced a non-finite loss or gradient; no trained checkpoint was written."""
+
+
+class NonFiniteDrape(DrapeFailed):
+    """A method's drape has NaN or Inf coordinates; the message names the method, how many frames and the first ones."""
+
+    def __init__(self, method: str, frames: list[int], n_frames: int):
+        self.method, self.frames = method, frames
+        shown = ", ".join(map(str, frames[:10])) + (f" and {len(frames) - 10} more" if len(frames) > 10 else "")
+        super().__init__(f"{method} produced NaN/Inf vertex positions in {len(frames)} of {n_frames} frames (frames {shown}); "
+                         "nothing was evaluated. Try the scene in float64 (dtype=float64) or a milder motion or shape.")

@@ -22,7 +22,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from drapebench.body.dataset import dataset_hash
 from drapebench.cache import PROJECT_ROOT, Cache, atomic_write, body_key, content_hash, forcing, write_json
-from drapebench.errors import DrapeFailed
+from drapebench.errors import DrapeFailed, NonFiniteDrape
 from drapebench.results import environment, git_commit, headline, write_prediction
 from drapebench.schema import check_keys
 from drapebench.train.checkpoint import write_losses
@@ -236,7 +236,8 @@ def _reference_train_data(cfg: DictConfig, garment, body, material, seq):
 def failure_record(cfg: DictConfig, err: BaseException) -> dict:
     """The ``failed.json`` record of a run of ``cfg`` that raised ``err``: the scene, the error and its message."""
     return {"status": "failed", "method": cfg.method.name, "garment": cfg.garment.kind, "motion": cfg.motion.name,
-            "body": cfg.body.name, "shape": shape_label(cfg.motion.betas), "error": type(err).__name__,
+            "body": cfg.body.name, "shape": shape_label(cfg.motion.betas), "dtype": getattr(cfg.dtype, "name", str(cfg.dtype)),
+            "error": type(err).__name__,
             "message": str(err), "experiment": cfg.experiment_name, "commit": git_commit()}  # fmt: skip
 
 
@@ -258,11 +259,12 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     method_cls = _method_class(cfg)  # fail fast on an unknown method
     stages = {}
     t = time.perf_counter()
-    body = load_body(cfg.body.name, device=cfg.device)
+    dtype = getattr(torch, getattr(cfg.dtype, "name", cfg.dtype))  # a Precision member once validated by the schema
+    body = load_body(cfg.body.name, dtype=dtype, device=cfg.device)
     material = Material.from_config(OmegaConf.to_container(cfg.material, resolve=True))
     m = cfg.motion
     seq = sequence_from_config(OmegaConf.to_container(m, resolve=True), body)
-    garment = garment_from_config(OmegaConf.to_container(cfg.garment, resolve=True), body, seq.betas)
+    garment = garment_from_config(OmegaConf.to_container(cfg.garment, resolve=True), body, seq.betas).in_dtype(dtype)
     stages["scene_s"] = time.perf_counter() - t
     log.info("scene: %s (%d vertices) on %s, %s (%d frames) in %.1f s", garment.kind, garment.n_vertices, body.name, seq.name,
              seq.n_frames, stages["scene_s"])  # fmt: skip
@@ -291,12 +293,15 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     t = time.perf_counter()
     result = method.drape(garment, seq)
     drape_s = time.perf_counter() - t
+    bad = (~torch.isfinite(result.vertices)).flatten(1).any(1)
+    if bad.any():
+        raise NonFiniteDrape(cfg.method.name, torch.nonzero(bad).squeeze(1).tolist(), seq.n_frames)
     t = time.perf_counter()
     summary, frames = _evaluate(cfg, garment, seq, body, result.vertices, reference, material)
     stages["eval_s"] = time.perf_counter() - t
     record = {
         "method": cfg.method.name, "garment": cfg.garment.kind, "motion": m.name, "body": cfg.body.name,
-        "shape": shape_label(seq.betas), "reference": cfg.reference.solver or "none", "n_vertices": garment.n_vertices, "n_frames": seq.n_frames, **summary,
+        "shape": shape_label(seq.betas), "dtype": str(dtype).removeprefix("torch."), "reference": cfg.reference.solver or "none", "n_vertices": garment.n_vertices, "n_frames": seq.n_frames, **summary,
         "ms_per_frame": drape_ms_per_frame(result.timings_ms, drape_s, seq.n_frames), "train_s": train_s,
         "setup_s": result.timings_ms.get("setup", 0.0) / 1e3,
         **{f"ms_{k}": v / seq.n_frames for k, v in result.timings_ms.items() if k != "setup"},

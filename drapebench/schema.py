@@ -135,6 +135,11 @@ class VizMode(Enum):
     none = "none"  # no recording (costs nothing)
 
 
+class Precision(Enum):
+    float32 = "float32"  # the default
+    float64 = "float64"  # body, garment topology, methods and metrics in double precision
+
+
 class FailureMode(Enum):
     stop = "stop"  # a diverged simulation or training raises (the sweep stops)
     record = "record"  # it is written to the run's failed.json and the sweep goes on
@@ -158,6 +163,7 @@ class Config:
     seed: int = 0
     threads: Optional[int] = None  # torch threads per job; None: the job's share of the CPU cores
     device: str = "cpu"
+    dtype: Precision = Precision.float32  # float64: the whole run in double precision (stability checks)
     experiment_name: str = "default"
 
 

@@ -358,3 +358,44 @@ def test_viz_body_draws_another_body_while_collisions_follow_the_runs_body(tmp_p
     assert seen["n_body"] == body_full.n_vertices != body_lowres.n_vertices
     assert float(seen["inside"][3:].double().mean() * 100) == pytest.approx(rec["eps_c"], rel=1e-6)  # magenta: the run's body
     assert list(seen["metrics"]["frame"])[0] == 3 and "eps_c" in seen["metrics"]  # the evaluated frames, plotted
+
+
+def test_a_drape_with_nan_is_a_failure_naming_its_frames(tmp_path, monkeypatch):
+    from drapebench.experiment import run
+    from methods.base import DrapeResult
+    from methods.lbs.method import LBSMethod
+
+    drape = LBSMethod.drape
+
+    def nan_at_2(self, garment, seq):
+        x = drape(self, garment, seq).vertices.clone()
+        x[2, 7, 1] = float("nan")
+        return DrapeResult(x, {})
+
+    monkeypatch.setattr(LBSMethod, "drape", nan_at_2)
+    out = tmp_path / "run"
+    rec = run(_compose([*FAST, "viz=none", "on_failure=record"]), out)
+    assert rec["error"] == "NonFiniteDrape" and "NaN/Inf vertex positions in 1 of" in rec["message"] and "frames 2)" in rec["message"]
+    assert not (out / "metrics.json").exists()
+
+
+def test_dtype_float64_runs_body_garment_method_and_metrics_in_double(tmp_path, monkeypatch):
+    from drapebench.experiment import run
+    from methods.lbs.method import LBSMethod
+
+    seen = {}
+    drape = LBSMethod.drape
+
+    def spy(self, garment, seq):
+        result = drape(self, garment, seq)
+        seen.update(body=self.body.dtype, topology=garment.topology.dtype, drape=result.vertices.dtype)
+        return result
+
+    monkeypatch.setattr(LBSMethod, "drape", spy)
+    rec64 = run(_compose([*FAST, "viz=none", "dtype=float64"]), tmp_path / "a")
+    assert seen == {"body": torch.float64, "topology": torch.float64, "drape": torch.float64} and rec64["dtype"] == "float64"
+    rec32 = run(_compose([*FAST, "viz=none"]), tmp_path / "b")
+    assert rec32["dtype"] == "float32" and seen["drape"] == torch.float32
+    assert rec64["eps_e"] == pytest.approx(rec32["eps_e"], rel=1e-4) and rec64["max_strain"] == pytest.approx(rec32["max_strain"], rel=1e-3)
+    with pytest.raises(Exception, match="float16"):
+        _compose([*FAST, "dtype=float16"])

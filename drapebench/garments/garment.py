@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -34,6 +34,11 @@ class Garment:
     @property
     def n_vertices(self) -> int:
         return self.vertices.shape[0]
+
+    def in_dtype(self, dtype: torch.dtype) -> Garment:
+        """This garment with its topology (rest lengths, areas, ... that energies and metrics use) in ``dtype``;
+        ``vertices`` stay the float32 record (content hashes do not depend on a run's precision)."""
+        return self if self.topology.dtype == dtype else replace(self, topology=self.topology.to(dtype=dtype))
 
     def export(self, path: str | Path) -> None:
         """Write an OBJ or PLY (by suffix) atomically."""

@@ -71,7 +71,7 @@ class GAPS(DrapingMethod):
         self.garment_betas = garment.betas[: body.n_betas].to(body.dtype)
         self.n_in = body.n_betas + 3 * body.n_joints + 3
         if self.net is None:
-            self.net = GapsNet(self.n_in, 3 * garment.n_vertices, p["hidden"], p["layers"], p["zero_init_output"])
+            self.net = GapsNet(self.n_in, 3 * garment.n_vertices, p["hidden"], p["layers"], p["zero_init_output"]).to(body.dtype)
             self.input_mean = torch.zeros(self.n_in)
             self.input_std = torch.ones(self.n_in)
         self.garment_key = content_hash(garment.vertices, garment.faces)
@@ -236,6 +236,8 @@ class GAPS(DrapingMethod):
         if self.net is None:
             self.net = GapsNet(state["n_in"], state["n_out"], self.p["hidden"], self.p["layers"], self.p["zero_init_output"])
         self.net.load_state_dict(state["net"])
-        self.weights = torch.nn.Parameter(state["weights"].clone(), requires_grad=self.p["trainable_weights"])
+        dtype = state["weights"].dtype if self.body is None else self.body.dtype  # a float32 model runs in a float64 scene
+        self.net.to(dtype)
+        self.weights = torch.nn.Parameter(state["weights"].clone().to(dtype), requires_grad=self.p["trainable_weights"])
         self.input_mean, self.input_std = state["input_mean"], state["input_std"]
         self.garment_key = state["garment_key"]
