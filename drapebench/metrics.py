@@ -14,10 +14,15 @@ posed body of the sequence:
   to the closest body surface point (:func:`drapebench.geometry.sdf.signed_distance`);
 - ``jitter``: mean |x[t+1] - 2 x[t] + x[t-1]| (mm; NaN at the first and last frame);
 - ``vertex_error_mm``: mean distance to the reference drape (mm), when one is given;
+- ``max_strain``: the largest relative edge-length change of the frame (%); ``max_penetration_mm``: the
+  depth of the frame's deepest vertex inside the body (mm, 0 when none); ``garment_body_mm``: the mean
+  signed distance of the garment's vertices to the body (mm);
 - ``energy_<name>``: :func:`drapebench.physics.energy_terms` per frame (J; collision in m^3, unweighted).
 
 The summary is the mean over the evaluated frames of every column, except ``penetration_mm`` (mean
-depth over all penetrating vertices of all frames); ``eps_e_std``, ``eps_a_std`` and ``eps_c_std``
+depth over all penetrating vertices of all frames), ``max_strain`` and ``max_penetration_mm`` (the
+largest over the frames), and ``drift_mm``: |mean garment_body_mm of the last 10 % of the frames - that
+of the first 10 %| (NaN below 10 frames); ``eps_e_std``, ``eps_a_std`` and ``eps_c_std``
 are the population std over frames of those metrics. The sequence's leading transition frames (rest
 pose -> motion) are left out by default. Frames are evaluated in chunks (``chunk_frames``), the body
 posed per chunk, so memory stays bounded on long sequences. The signed distance is the default path of
@@ -125,8 +130,16 @@ def evaluate(
     summary = {k: float(df[k].mean()) for k in df.columns if k != "frame"}  # pandas skips the NaN jitter ends
     summary.update({f"{k}_std": float(df[k].std(ddof=0)) for k in ("eps_e", "eps_a", "eps_c")})
     summary["penetration_mm"] = sum(depth_sum) / max(sum(n_inside), 1) * 1e3
+    summary["max_strain"], summary["max_penetration_mm"] = float(df["max_strain"].max()), float(df["max_penetration_mm"].max())
+    summary["drift_mm"] = drift(df["garment_body_mm"].to_numpy())
     summary["n_frames_evaluated"] = len(df)
     return summary, df
+
+
+def drift(per_frame: np.ndarray, share: float = 0.1) -> float:
+    """|mean of the last ``share`` of the values - mean of the first ``share``| (same unit; NaN below 1/share values)."""
+    n = int(len(per_frame) * share)
+    return float(abs(per_frame[-n:].mean() - per_frame[:n].mean())) if n >= 1 else float("nan")
 
 
 def _jitter(x: torch.Tensor, chunk_frames: int) -> torch.Tensor:
@@ -159,5 +172,8 @@ def _frame_metrics(xe, topo, body_v, body_n, faces, cand, exact: bool):
         "edge_mm": d_len.mean(-1) * 1e3,
         "smoothness": lap.reshape(topo.n_vertices, -1, 3).norm(dim=-1).mean(0),
         "penetration_mm": depth / n_in.clamp_min(1) * 1e3,
+        "max_strain": (d_len / topo.rest_edge_lengths).amax(-1) * 100,
+        "max_penetration_mm": torch.clamp(-sd, min=0).amax(-1) * 1e3,
+        "garment_body_mm": sd.mean(-1) * 1e3,
     }
     return cols, nn, depth, n_in

@@ -36,7 +36,9 @@ TABLES = {
     "gensim_ablation": (["eps_e", "edge_mm", "smoothness", "eps_c", "vertex_error_mm"], "garment"),
     "gensim_table1": (["eps_c", "vertex_error_mm"], "experiment"),
     "gaps_generalisation": (["eps_e", "eps_a", "eps_c", "vertex_error_mm", "energy_j"], "scene"),
+    "stability": (["max_strain", "max_penetration_mm", "eps_c", "drift_mm"], None),  # one row per run
 }
+CASE_COLUMNS = ["method", "garment", "motion", "shape", "dtype", "n_frames"]  # a row of a per-run table
 ENERGY_PARTS = ("energy_stvk", "energy_bending", "energy_gravity")  # summed into energy_j (J per frame)
 # what a table's empty cells mean, printed under it
 TABLE_NOTES = {
@@ -153,6 +155,18 @@ def table(df: pd.DataFrame, metrics: list[str], decimals: int = 3, group: str = 
     return out.fillna("–")
 
 
+def run_table(df: pd.DataFrame, failed: pd.DataFrame, metrics: list[str], decimals: int = 3) -> pd.DataFrame:
+    """One row per run (its scene in ``CASE_COLUMNS``, then ``metrics``), the failed runs' metric cells
+    "failed"; rows in the order of the runs."""
+    cases = [c for c in CASE_COLUMNS if c in df or c in failed]
+    done = df.reindex(columns=cases + metrics).astype(object)
+    for m in metrics:
+        done[m] = [f"{v:.{decimals}f}" if pd.notna(v) else "–" for v in df.get(m, pd.Series([float("nan")] * len(df)))]
+    bad = failed.reindex(columns=cases).assign(**{m: "failed" for m in metrics}) if len(failed) else None
+    out = pd.concat([done, bad]) if bad is not None else done
+    return out.fillna("–").set_index("method")
+
+
 def provenance(df: pd.DataFrame, command: str) -> str:
     """One line naming the command, commits, machine and date that produced the table."""
     commits = ", ".join(sorted(set(map(str, df.get("commit", pd.Series(["unknown"]))))))
@@ -172,7 +186,10 @@ def scene(df: pd.DataFrame) -> str:
 
 def _markdown(t: pd.DataFrame) -> str:
     flat = t.copy()
-    flat.columns = [f"{g} {m}" for g, m in t.columns]
+    if isinstance(t.columns, pd.MultiIndex):
+        flat.columns = [f"{g} {m}" for g, m in t.columns]
+    else:
+        flat.columns = [metric_label(c) for c in t.columns]
     return flat.to_markdown()
 
 
@@ -356,11 +373,12 @@ def write_table(dirs, name: str, out: Path, command: str | None = None, methods:
     failed = collect_failures(dirs)
     if methods and not failed.empty:
         failed = failed[failed["method"].isin(methods)]
-    t = mark_failures(table(df, metrics, group=group), failed, group=group)
+    t = run_table(df, failed, metrics) if group is None else mark_failures(table(df, metrics, group=group), failed, group=group)
     command = command or "python -m drapebench.report " + " ".join(sys.argv[1:])
     prov = provenance(pd.concat([df, failed]), command)
     about = f"{scene(pd.concat([df, failed]))}\n\n{legend(metrics)}"
-    notes = "".join(f"\n- {r.method} on {r[group]} failed: {r.message}" for _, r in failed.iterrows()) if len(failed) else ""
+    where = (lambda r: " ".join(str(r.get(c, "")) for c in CASE_COLUMNS[1:5])) if group is None else (lambda r: r[group])  # noqa: E731
+    notes = "".join(f"\n- {r.method} on {where(r)} failed: {r.message}" for _, r in failed.iterrows()) if len(failed) else ""
     if name in TABLE_NOTES:
         notes += "\n" + TABLE_NOTES[name]
     if "vertex_error_mm" in metrics and reference_floor(df, group):

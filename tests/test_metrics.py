@@ -7,6 +7,7 @@ import trimesh
 
 from drapebench.body import BodyModel, BodySequence
 from drapebench.geometry import get_topology
+from drapebench.geometry.ops import edge_lengths
 from drapebench.metrics import evaluate
 
 
@@ -97,6 +98,24 @@ def test_lbs_drape_on_a_real_body_matches_unculled_queries(body_lowres):
     assert np.isclose(summary["penetration_mm"], float(depth.mean()) * 1e3 if len(depth) else 0.0, rtol=1e-5)
     for name in ("stvk", "bending", "gravity", "collision"):
         assert np.isfinite(frames[f"energy_{name}"]).all()
+    rel = (edge_lengths(xe, g.topology.edges) - g.topology.rest_edge_lengths).abs() / g.topology.rest_edge_lengths
+    assert np.isclose(summary["max_strain"], float(rel.max()) * 100, rtol=1e-5)
+    assert np.isclose(summary["max_penetration_mm"], float(depth.max()) * 1e3 if len(depth) else 0.0, rtol=1e-5)
+    assert np.allclose(frames["garment_body_mm"], sd.mean(-1) * 1e3, rtol=1e-5)
+
+
+def test_drift_compares_the_first_and_last_tenth_of_the_frames(sphere_scene):
+    from drapebench.metrics import drift
+
+    assert drift(np.arange(20.0)) == 18.0  # last two (18, 19) against first two (0, 1)
+    assert drift(np.r_[np.zeros(10), -np.ones(10)]) == 1.0 and np.isnan(drift(np.ones(9)))
+    body, garment, _ = sphere_scene
+    seq = BodySequence("still", "static", torch.zeros(1), torch.zeros(20, 1, 3), torch.zeros(20, 3))
+    rising = garment.vertices[None] + torch.linspace(0, 0.1, seq.n_frames)[:, None, None] * torch.tensor([0.0, 0.0, 1.0])
+    summary, frames = evaluate(garment, seq, body, rising, skip_transition=False)
+    n = len(frames) // 10
+    expected = abs(frames["garment_body_mm"][-n:].mean() - frames["garment_body_mm"][:n].mean())
+    assert summary["drift_mm"] == pytest.approx(expected) and summary["drift_mm"] > 1.0
 
 
 @pytest.mark.parametrize("shift", [(0.0, 0.0, 0.0), (0.0, -2.0, 0.0), (0.08, 0.0, 0.0)])

@@ -270,3 +270,23 @@ def test_vertex_error_tables_print_the_reference_floor_or_how_to_measure_it(tmp_
     md = write_table([runs / "0_lbs"], "runtime_vs_error", tmp_path / "u", command="pytest")[0].read_text()
     assert "Reference floor: not measured" in md and "method=pbs_style3d,pbs_half_dt" in md
     assert "Reference floor" not in write_table([runs / "0_lbs"], "baseline", tmp_path / "v", command="pytest")[0].read_text()
+
+
+def test_the_stability_table_has_a_row_per_run_and_failed_runs_with_their_cause(tmp_path):
+    import json
+    import shutil
+
+    runs = tmp_path / "runs"
+    for i, (dtype, strain) in enumerate([("float32", 12.5), ("float64", 12.4)]):
+        d = runs / f"{i}_lbs"
+        shutil.copytree(FIXTURES / "0_lbs_tshirt", d)
+        rec = {**json.loads((d / "metrics.json").read_text()), "dtype": dtype, "max_strain": strain, "max_penetration_mm": 3.0, "drift_mm": 0.5}
+        (d / "metrics.json").write_text(json.dumps(rec))
+    (runs / "2_gaps").mkdir()
+    (runs / "2_gaps" / "failed.json").write_text(json.dumps({"status": "failed", "method": "gaps", "garment": "skirt", "motion": "stress",
+                                                             "shape": "b0=2", "dtype": "float32", "message": "NaN/Inf in 3 of 300 frames"}))
+    md = write_table([runs], "stability", tmp_path / "s", command="pytest")[0].read_text()
+    rows = [line for line in md.splitlines() if line.startswith("| lbs") or line.startswith("| gaps")]
+    assert len(rows) == 3 and "float64" in rows[1] and "12.400" in rows[1]
+    assert rows[2].count("failed") == 4 and "gaps on skirt stress b0=2 float32 failed: NaN/Inf in 3 of 300 frames" in md
+    assert "max strain (%)" in md and "drift (mm)" in md
