@@ -1,6 +1,7 @@
 """End-to-end runs of run.py through Hydra (low-resolution body, short sequences)."""
 
 import json
+import math
 import os
 import subprocess
 import sys
@@ -399,3 +400,16 @@ def test_dtype_float64_runs_body_garment_method_and_metrics_in_double(tmp_path, 
     assert rec64["eps_e"] == pytest.approx(rec32["eps_e"], rel=1e-4) and rec64["max_strain"] == pytest.approx(rec32["max_strain"], rel=1e-3)
     with pytest.raises(Exception, match="float16"):
         _compose([*FAST, "dtype=float16"])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("method", [["method=lbs"], ["method=gaps", "train.epochs=0"]])
+def test_a_slice_of_the_stability_matrix_is_finite_and_the_same_in_float32_and_float64(tmp_path, method):
+    from drapebench.experiment import run
+
+    scene = ["experiment=stability", *method, "garment=tshirt", "motion=stress", "motion.n_frames=40", "motion.betas=[2.0,2.0]", "viz=none"]
+    recs = {d: run(_compose([*scene, f"dtype={d}"]), tmp_path / d) for d in ("float32", "float64")}
+    for rec in recs.values():
+        assert rec["dtype"] in recs and all(math.isfinite(rec[k]) for k in ("max_strain", "max_penetration_mm", "eps_c", "drift_mm"))
+    for k in ("max_strain", "max_penetration_mm", "eps_c", "eps_e"):
+        assert recs["float64"][k] == pytest.approx(recs["float32"][k], rel=1e-3, abs=1e-4)
