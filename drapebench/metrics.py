@@ -157,6 +157,7 @@ def _frame_metrics(xe, topo, body_v, body_n, faces, cand, exact: bool):
     penetrating vertices."""
     lengths = edge_lengths(xe, topo.edges)
     d_len = (lengths - topo.rest_edge_lengths).abs()
+    strain = d_len / topo.rest_edge_lengths
     rel_a = (face_areas(xe, topo.faces) - topo.face_areas).abs() / topo.face_areas
     sd = signed_distance(xe, body_v, faces, exact=exact)
     nn = nearest_body_vertex(xe, body_v, body_n, cand)
@@ -165,14 +166,14 @@ def _frame_metrics(xe, topo, body_v, body_n, faces, cand, exact: bool):
     depth = torch.where(inside, -sd, torch.zeros_like(sd)).sum(-1)
     lap = torch.sparse.mm(topo.laplacian, xe.permute(1, 0, 2).reshape(topo.n_vertices, -1))
     cols = {
-        "eps_e": (d_len / topo.rest_edge_lengths).mean(-1) * 100,
+        "eps_e": strain.mean(-1) * 100,
         "eps_a": rel_a.mean(-1) * 100,
         "eps_c": inside.to(xe.dtype).mean(-1) * 100,
         "eps_c_nn": (nn.distance < 0).to(xe.dtype).mean(-1) * 100,
         "edge_mm": d_len.mean(-1) * 1e3,
         "smoothness": lap.reshape(topo.n_vertices, -1, 3).norm(dim=-1).mean(0),
         "penetration_mm": depth / n_in.clamp_min(1) * 1e3,
-        "max_strain": (d_len / topo.rest_edge_lengths).amax(-1) * 100,
+        "max_strain": strain.amax(-1) * 100,
         "max_penetration_mm": torch.clamp(-sd, min=0).amax(-1) * 1e3,
         "garment_body_mm": sd.mean(-1) * 1e3,
     }
