@@ -28,15 +28,23 @@ $(BIN)/.installed-dev: $(BIN)/.installed
 	$(BIN)/pip install --progress-bar on -e ".[dev]"
 	touch $@
 
+# The simulator's warp kernels, compiled once per environment (about a minute on 2 cores) before the
+# first test session; warp keeps them in data/cache/warp (drapebench/reference/kernels.py).
+KERNELS := $(WARP_CACHE_PATH)/.compiled
+
+$(KERNELS): $(BIN)/.installed-dev drapebench/reference/scene.py drapebench/geometry/body_bvh.py
+	$(BIN)/python -m drapebench.reference.kernels
+	touch $@
+
 venv: $(BIN)/.installed
 
 run: venv
 	$(BIN)/python run.py $(ARGS)
 
-test: $(BIN)/.installed-dev
+test: $(BIN)/.installed-dev $(KERNELS)
 	$(BIN)/python -m pytest $(ARGS)
 
-test-slow: $(BIN)/.installed-dev
+test-slow: $(BIN)/.installed-dev $(KERNELS)
 	$(BIN)/python -m pytest -m slow $(ARGS)
 
 bench: venv
