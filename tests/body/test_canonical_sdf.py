@@ -9,7 +9,7 @@ from drapebench.body import fit_body_sdf
 from drapebench.body.fields import sample_surface
 from drapebench.geometry.sdf import signed_distance
 
-TINY = dict(n_near=8000, n_box=2000, n_heldout=500, steps=1500, width=64, depth=3, n_frequencies=4, lr=5e-3, batch=2048)
+TINY = dict(n_near=8000, n_box=2000, n_heldout=500, steps=1000, width=64, depth=3, n_frequencies=4, lr=1e-2, batch=1024)
 
 
 @pytest.fixture(scope="module")
