@@ -1,0 +1,67 @@
+"""The Hydra callback of every sweep (``hydra.callbacks.sweep_summary`` in ``conf/config.yaml``).
+
+It is instantiated when a sweep starts, before any job runs, so this module imports only Hydra: a sweep
+with a bad override fails within about a second instead of after the pipeline's imports.
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+from hydra.experimental.callback import Callback
+from omegaconf import DictConfig
+
+log = logging.getLogger("drapebench")
+
+
+class SweepSummary(Callback):
+    """Hydra callback: at the end of a sweep, gather every job's metrics.json into summary.md / summary.csv.
+    A job that raises leaves ``failed.json`` (the error and its message) in its folder; a sweep that stops
+    early still gets its summary (finished and failed jobs), and one that stops before any job started
+    (a bad override) leaves no empty folder behind."""
+
+    def on_multirun_start(self, config: DictConfig, **kwargs) -> None:
+        import atexit
+
+        self._ended = False
+        atexit.register(self._after_early_stop, Path(config.hydra.sweep.dir))
+
+    def on_job_end(self, config: DictConfig, job_return, **kwargs) -> None:
+        from hydra.core.utils import JobStatus
+
+        out = Path(job_return.hydra_cfg.hydra.runtime.output_dir) if job_return.hydra_cfg else None
+        if job_return.status == JobStatus.FAILED and out is not None and out.is_dir() and not (out / "failed.json").exists():
+            from drapebench.cache import write_json
+            from drapebench.experiment import failure_record
+
+            write_json(out / "failed.json", failure_record(config, job_return._return_value))
+
+    def on_multirun_end(self, config: DictConfig, **kwargs) -> None:
+        self._ended = True
+        self._summarise(Path(config.hydra.sweep.dir))
+
+    def _summarise(self, sweep_dir: Path) -> None:
+        from drapebench.report import write_summary
+
+        if sweep_dir.exists():
+            log.info("sweep summary: %s", write_summary(sweep_dir))
+
+    def _after_early_stop(self, sweep_dir: Path) -> None:
+        if self._ended or not sweep_dir.is_dir():
+            return
+        import re
+        import shutil
+        import sys
+
+        if not any(p.is_dir() for p in sweep_dir.iterdir()):
+            shutil.rmtree(sweep_dir)
+            if re.fullmatch(r"\d{4}-\d{2}-\d{2}", sweep_dir.parent.name) and not any(sweep_dir.parent.iterdir()):
+                sweep_dir.parent.rmdir()  # the default layout's multirun/<date>/, when this was its only sweep
+            print(f"the sweep stopped before any job started; removed its empty folder {sweep_dir}", file=sys.stderr)
+            return
+        try:
+            self._summarise(sweep_dir)
+            print(f"the sweep stopped early; finished and failed jobs: {sweep_dir / 'summary.md'}", file=sys.stderr)
+        except FileNotFoundError:  # no job finished or recorded a failure
+            print(f"the sweep stopped before any job finished; see the run.log in each job folder of {sweep_dir}", file=sys.stderr)
