@@ -77,7 +77,9 @@ def _point(method: str, resolution: float, n_frames: int) -> dict:
     _, status, usage = os.wait4(child.pid, 0)
     if status != 0:
         raise SystemExit(f"{method} at resolution {resolution}, {n_frames} frames: the child failed with status {status}")
-    rec = {**json.loads(out[-1]), "peak_rss_gb": usage.ru_maxrss / 2**20, "resolution": resolution}
+    from drapebench.results import git_commit
+
+    rec = {**json.loads(out[-1]), "peak_rss_gb": usage.ru_maxrss / 2**20, "resolution": resolution, "commit": git_commit()}
     print(f"{rec['method']:7s} {rec['n_vertices']:6d} vertices {n_frames:6d} frames: {rec['ms_per_frame']:9.3f} ms/frame, "
           f"peak RSS {rec['peak_rss_gb']:.2f} GB", flush=True)  # fmt: skip
     return rec
@@ -93,7 +95,7 @@ def _write(points, out: Path) -> None:
 
     from drapebench.cache import atomic_write
     from drapebench.report import save_figure
-    from drapebench.results import environment
+    from drapebench.results import git_commit
 
     df = pd.DataFrame(points)
     by_v = df[df["sweep"] == "vertices"]
@@ -106,17 +108,17 @@ def _write(points, out: Path) -> None:
                      "peak RSS ~ V^k": f"{exponent(v['n_vertices'], v['peak_rss_gb']):.2f}",
                      "ms/frame ~ T^k": f"{exponent(t['n_frames'], t['ms_per_frame']):.2f}",
                      "peak RSS ~ T^k": f"{exponent(t['n_frames'], t['peak_rss_gb']):.2f}",
-                     f"ms/frame at {int(v['n_vertices'].min())}-{int(v['n_vertices'].max())} V": " / ".join(f"{x:.3g}" for x in v["ms_per_frame"]),
-                     f"peak RSS (GB) at {' / '.join(str(int(n)) for n in t['n_frames'])} frames": " / ".join(f"{x:.2f}" for x in t["peak_rss_gb"])})  # fmt: skip
-    env = environment("cpu")
-    text = (f"# scaling\n\nDrape time per frame and the run's peak memory (drape, chunked evaluation, h5 output; one fresh process "
+                     "ms/frame at V = " + ", ".join(f"{int(n)}" for n in v["n_vertices"]): " / ".join(f"{x:,.0f}" if x >= 100 else f"{x:.3g}" for x in v["ms_per_frame"]),
+                     "peak RSS (GB) at T frames": ", ".join(f"{x:.2f} ({int(n)})" for n, x in zip(t["n_frames"], t["peak_rss_gb"]))})  # fmt: skip
+    commit = df["commit"].iloc[0] if "commit" in df else git_commit()
+    text = (f"# Scaling: drape time and peak memory against garment size and sequence length\n\nDrape time per frame and the run's peak memory (drape, chunked evaluation, h5 output; one fresh process "
             f"per point) against the garment's vertex count V (tshirt at {', '.join(f'{r * 100:g}' for r in RESOLUTIONS)} cm "
             f"resolution, 100 frames) and the sequence length T (tshirt at {DEFAULT_RESOLUTION * 100:g} cm). k: the fitted exponent "
             f"(1: linear; lower is better). Untrained weights (the same cost as trained ones).\n\n"
             f"{pd.DataFrame(rows).set_index('method').to_markdown()}\n\n"
             f"Scene: garment tshirt; body anny_lowres; motion walk; one torch thread; no reference.\n\n"
-            f"Produced by `python benchmarks/bench_scaling.py --out {out}` at commit {env['commit']} on "
-            f"{env.get('machine', 'this machine')} (load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores).\n")  # fmt: skip
+            f"Produced by `python benchmarks/bench_scaling.py --out {out}` at commit {commit} on {os.cpu_count()} CPU cores, "
+            f"nothing else running; `--redraw {out}.csv` redraws this table and the plot from the measured points.\n")  # fmt: skip
     with atomic_write(out.with_suffix(".md"), "w") as f:
         f.write(text)
     with atomic_write(out.with_suffix(".csv"), "w") as f:
@@ -158,4 +160,11 @@ if __name__ == "__main__":
     else:
         parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
         parser.add_argument("--out", type=Path, default=Path("outputs/scaling"), help="output path without suffix (reports/scaling to replace the committed one)")
-        main(parser.parse_args().out)
+        parser.add_argument("--redraw", type=Path, help="a CSV written by an earlier run: rewrite the table and plot from it, measure nothing")
+        args = parser.parse_args()
+        if args.redraw:
+            import pandas as pd
+
+            _write(pd.read_csv(args.redraw).to_dict("records"), args.out)
+        else:
+            main(args.out)
