@@ -183,11 +183,13 @@ class GAPS(DrapingMethod):
         betas = self._sequence_betas(seq)
         vel = root_velocity(seq)[None].to(self.body.dtype)
         t1 = time.perf_counter()
-        with torch.inference_mode():
+        with torch.no_grad():  # not inference_mode: the result is an ordinary tensor, no copy of the sequence needed
             delta, _ = self.net(self._inputs(betas, seq.poses[None].to(self.body.dtype), vel))
             t2 = time.perf_counter()
             xc = self._canonical(delta, betas)[0]
+            del delta  # (T, 3V): freed before skinning, which holds another (T, V, 3)
             x = skin_then_translate(xc, self.weights, transforms, seq.trans.to(xc.dtype))
+            del xc
         t3 = time.perf_counter()
         ms = lambda a, b: (b - a) * 1e3  # noqa: E731
         timings = {"setup": ms(t_setup, t0), "body": ms(t0, t1), "network": ms(t1, t2), "skinning": ms(t2, t3)}
@@ -196,7 +198,7 @@ class GAPS(DrapingMethod):
             nn = self._body_contact(x, bv, bn)
             x = x + torch.relu(self.p["collision_eps"] - nn.distance)[..., None] * nn.normal
             timings["postprocess"] = ms(t3, time.perf_counter())
-        return DrapeResult(x.clone(), timings)
+        return DrapeResult(x, timings)
 
     def _sequence_betas(self, seq) -> torch.Tensor:
         """(1, S) the sequence's shape coefficients, zero-padded to the body's S (a sequence may give fewer)."""
