@@ -111,17 +111,19 @@ def _write(points, out: Path) -> None:
                      "ms/frame at V = " + ", ".join(f"{int(n)}" for n in v["n_vertices"]): " / ".join(f"{x:,.0f}" if x >= 100 else f"{x:.3g}" for x in v["ms_per_frame"]),
                      "peak RSS (GB) at T frames": ", ".join(f"{x:.2f} ({int(n)})" for n, x in zip(t["n_frames"], t["peak_rss_gb"]))})  # fmt: skip
     commit = df["commit"].iloc[0] if "commit" in df else git_commit()
+    scene = "Scene: garment tshirt; body anny_lowres; motion walk; one torch thread; no reference."
+    produced = f"Produced by `python benchmarks/bench_scaling.py --out {out}` from runs at commit(s) {commit}"
     text = (f"# Scaling: drape time and peak memory against garment size and sequence length\n\nDrape time per frame and the run's peak memory (drape, chunked evaluation, h5 output; one fresh process "
             f"per point) against the garment's vertex count V (tshirt at {', '.join(f'{r * 100:g}' for r in RESOLUTIONS)} cm "
             f"resolution, 100 frames) and the sequence length T (tshirt at {DEFAULT_RESOLUTION * 100:g} cm). k: the fitted exponent "
             f"(1: linear; lower is better). Untrained weights (the same cost as trained ones).\n\n"
             f"{pd.DataFrame(rows).set_index('method').to_markdown()}\n\n"
-            f"Scene: garment tshirt; body anny_lowres; motion walk; one torch thread; no reference.\n\n"
-            f"Produced by `python benchmarks/bench_scaling.py --out {out}` at commit {commit} on {os.cpu_count()} CPU cores, "
-            f"nothing else running; `--redraw {out}.csv` redraws this table and the plot from the measured points.\n")  # fmt: skip
+            f"{scene}\n\n{produced} on {os.cpu_count()} CPU cores, nothing else running; `--redraw {out}.csv` redraws "
+            f"this table and the plot from the measured points.\n")  # fmt: skip
     with atomic_write(out.with_suffix(".md"), "w") as f:
         f.write(text)
     with atomic_write(out.with_suffix(".csv"), "w") as f:
+        f.write(f"# {produced}\n# {scene}\n")
         df.to_csv(f, index=False)
     import matplotlib
 
@@ -165,6 +167,6 @@ if __name__ == "__main__":
         if args.redraw:
             import pandas as pd
 
-            _write(pd.read_csv(args.redraw).to_dict("records"), args.out)
+            _write(pd.read_csv(args.redraw, comment="#").to_dict("records"), args.out)
         else:
             main(args.out)
