@@ -143,9 +143,10 @@ class _Body:
 _BODIES: dict = {}
 
 
-def _body(faces: np.ndarray, vertices: torch.Tensor, device: str) -> _Body:
-    """The cached warp mesh of this topology (faces (F,3) int64) on this device, built on ``vertices``."""
-    key = (faces.tobytes(), vertices.shape[0], device)
+def _body(faces: np.ndarray, vertices: torch.Tensor, device: str, slot: int = 0) -> _Body:
+    """The cached warp mesh of this topology (faces (F,3) int64) on this device, built on ``vertices``;
+    ``slot`` k > 0 is another copy, for the k-th thread querying frames at the same time."""
+    key = (faces.tobytes(), vertices.shape[0], device, slot)
     if key not in _BODIES:
         if len(_BODIES) >= 8:
             _BODIES.pop(next(iter(_BODIES)))
@@ -159,25 +160,37 @@ def query(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: torch.T
     points (B,N,3) m; body_vertices (B,Vb,3); body_faces (F,3) long, a closed consistently oriented
     mesh (:func:`is_closed`). Returns winding (B,N) int32; face (B,N) long, a closest face (searched
     in float32: of two faces within about 1e-7 m of the same distance either may come back); the
-    closest point on that face (B,N,3) float64, computed in float64.
+    closest point on that face (B,N,3) float64, computed in float64. On the CPU the frames are split
+    over ``torch.get_num_threads()`` threads (warp's CPU kernels release the GIL), each with its own mesh.
     """
     faces = body_faces.detach().cpu().numpy().astype(np.int64)
     device = "cpu" if points.device.type == "cpu" else f"cuda:{points.device.index or 0}"
     pts = points.detach().to(torch.float64).contiguous()
     verts = body_vertices.detach().to(pts.device, torch.float64).contiguous()
     verts32 = verts.float()
-    body = _body(faces, verts32[0].cpu() if device == "cpu" else verts32[0], device)
     B, N = pts.shape[:2]
     winding = torch.empty(B, N, dtype=torch.int32, device=pts.device)
     face = torch.empty(B, N, dtype=torch.int32, device=pts.device)
     closest = torch.empty(B, N, 3, dtype=torch.float64, device=pts.device)
-    for b in range(B):
-        wp.copy(body.points, wp.from_torch(verts32[b], dtype=wp.vec3))
-        wp.copy(body.points64, wp.from_torch(verts[b], dtype=wp.vec3d))
-        body.mesh.refit()
-        wp.launch(_query, dim=N, device=device, inputs=[body.mesh.id, body.points, body.points64, body.faces, wp.from_torch(pts[b], dtype=wp.vec3d),
-                                                        body.directions, wp.from_torch(winding[b]), wp.from_torch(face[b]),
-                                                        wp.from_torch(closest[b], dtype=wp.vec3d)])  # fmt: skip
+
+    def frames(slot: int, chunk: range) -> None:
+        body = _body(faces, verts32[0].cpu() if device == "cpu" else verts32[0], device, slot)
+        for b in chunk:
+            wp.copy(body.points, wp.from_torch(verts32[b], dtype=wp.vec3))
+            wp.copy(body.points64, wp.from_torch(verts[b], dtype=wp.vec3d))
+            body.mesh.refit()
+            wp.launch(_query, dim=N, device=device, inputs=[body.mesh.id, body.points, body.points64, body.faces, wp.from_torch(pts[b], dtype=wp.vec3d),
+                                                            body.directions, wp.from_torch(winding[b]), wp.from_torch(face[b]),
+                                                            wp.from_torch(closest[b], dtype=wp.vec3d)])  # fmt: skip
+
+    n_threads = min(torch.get_num_threads(), B) if device == "cpu" else 1
+    if n_threads <= 1:
+        frames(0, range(B))
+    else:
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(n_threads) as pool:
+            list(pool.map(frames, range(n_threads), [range(k, B, n_threads) for k in range(n_threads)]))
     return winding, face.long(), closest
 
 
