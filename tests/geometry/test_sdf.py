@@ -76,6 +76,25 @@ def test_closest_point_lies_on_its_face_at_the_distance():
     assert signed_distance(p.float(), V.float()[None], F).dtype == torch.float32
 
 
+def test_frames_split_over_threads_give_each_frame_its_own_answer(monkeypatch):
+    """body_bvh.query hands frames to torch's threads, each with its own warp mesh: every frame (a sphere
+    at its own place and size) gets the answer a one-thread query gives it."""
+    mesh = trimesh.creation.icosphere(2, radius=0.5)
+    F = torch.as_tensor(mesh.faces)
+    V = torch.stack([torch.as_tensor(mesh.vertices) * (1 + 0.1 * b) + 0.05 * b for b in range(5)])
+    p = torch.randn(5, 200, 3, dtype=torch.float64) * 0.6
+    monkeypatch.setattr(torch, "get_num_threads", lambda: 3)
+    split = body_bvh.query(p, V, F)
+    monkeypatch.setattr(torch, "get_num_threads", lambda: 1)
+    one = [body_bvh.query(p[b : b + 1], V[b : b + 1], F) for b in range(5)]
+    for got, want in zip(split, zip(*one)):
+        assert torch.equal(got, torch.cat(want))
+    r = (p - 0.05 * torch.arange(5.0, dtype=torch.float64)[:, None, None]).norm(dim=-1)
+    radius = 0.5 * (1 + 0.1 * torch.arange(5.0, dtype=torch.float64))[:, None]
+    clear = (r - radius).abs() > 0.05 * radius  # away from the faceted sphere's surface
+    assert torch.equal((split[0] > 0)[clear], (r < radius)[clear])  # each frame tested against its own sphere
+
+
 def test_eps_c_count_is_exact_for_points_placed_in_a_box():
     """k points placed inside a box body (1 mm to 4 cm deep), the rest outside (1 mm to 4 cm away)."""
     mesh = trimesh.creation.box((0.3, 0.2, 0.5))
