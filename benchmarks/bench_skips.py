@@ -5,8 +5,9 @@ Scene: the tshirt (about 3k vertices) on the full Anny body (13.7k vertices), sk
 
 - held pose: a static scene's body posed once per held pose (``BodySequence.held_frames``) against
   posing every frame;
-- body culling: the nearest-body-vertex query of ``evaluate()`` (eps_c_nn, the energies' collision term)
-  over the body vertices near the garment against the whole body;
+- body culling: the nearest-body-vertex query of GAPS's collision term in training (scipy's KD-tree)
+  over the body vertices near the garment against the whole body (``evaluate()`` searches the whole
+  body, in the pass that finds the signed distance);
 - cached topology: ``get_topology`` from the content-hash cache against building it;
 - cached garment: ``make_garment`` from the cache against building it (body distance grid, remeshing,
   validation; inside ``forcing()``, which rewrites the same cache entries);
@@ -30,10 +31,10 @@ from drapebench.body import load_body, make_sequence
 from drapebench.body.lbs import lbs
 from drapebench.cache import forcing
 from drapebench.garments import make_garment
-from drapebench.geometry.proximity import nearest_body_vertex
+from drapebench.geometry.proximity import culled_body_vertices, nearest_body_vertex
 from drapebench.geometry.sdf import inside_body
 from drapebench.geometry.topology import get_topology
-from drapebench.metrics import body_candidates, evaluate
+from drapebench.metrics import evaluate
 from drapebench.viz import record_drape
 
 
@@ -60,7 +61,7 @@ def main() -> None:
     rows.append(_row(f"held pose (static, {static.n_frames} frames, {len(torch.unique(static.held_frames()))} distinct)", held, every, "sequence"))
 
     bv, bn = seq.vertices(body), seq.vertex_normals(body)
-    cand = body_candidates(g, body)
+    cand = culled_body_vertices(g.vertices, body.v_template, body.weights)  # the mean-shape garment on the mean body, as GAPS culls
     culled = best(lambda: nearest_body_vertex(x, bv, bn, cand), 3)
     whole = best(lambda: nearest_body_vertex(x, bv, bn), 3)
     rows.append(_row(f"body culling ({len(cand)} of {body.n_vertices} body vertices)", culled / seq.n_frames, whole / seq.n_frames, "frame"))

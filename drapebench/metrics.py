@@ -27,8 +27,8 @@ are the population std over frames of those metrics. The sequence's leading tran
 pose -> motion) are left out by default. Frames are evaluated in chunks (``chunk_frames``), the body
 posed per chunk, so memory stays bounded on long sequences. The signed distance is the default path of
 :mod:`drapebench.geometry.sdf` (``exact=True``: its libigl path; the tolerance between them is stated
-there); the nearest-vertex queries (``eps_c_nn``, the collision
-energy) look at the body parts near the garment at rest (:func:`culled_body_vertices`).
+there); the nearest body vertex (``eps_c_nn``, the collision energy) is searched over the whole body
+in the same pass (:func:`drapebench.geometry.sdf.body_proximity`).
 """
 
 from __future__ import annotations
@@ -38,8 +38,7 @@ import pandas as pd
 import torch
 
 from drapebench.geometry.ops import edge_lengths, face_areas
-from drapebench.geometry.proximity import culled_body_vertices, nearest_body_vertex
-from drapebench.geometry.sdf import signed_distance
+from drapebench.geometry.sdf import body_proximity
 
 
 def _check_positions(x, n_frames: int, n_vertices: int, what: str) -> torch.Tensor:
@@ -54,16 +53,6 @@ def _check_positions(x, n_frames: int, n_vertices: int, what: str) -> torch.Tens
         more = f" and {len(frames) - 10} more" if len(frames) > 10 else ""
         raise ValueError(f"{what} contains NaN/Inf in frames {frames[:10]}{more}")
     return p
-
-
-def body_candidates(garment, body) -> torch.Tensor:
-    """(C,) body vertices near the garment (:func:`culled_body_vertices` on the garment's body shape),
-    for the nearest-vertex queries."""
-    betas = getattr(garment, "betas", None)
-    rest = body.v_template
-    if betas is not None:
-        rest = body.shaped(torch.as_tensor(betas, dtype=rest.dtype)[None, : body.n_betas])[0][0]
-    return culled_body_vertices(garment.vertices, rest, body.weights)
 
 
 CHUNK_FRAMES = 256  # frames evaluated together: bounds evaluate()'s memory on long sequences
@@ -84,16 +73,15 @@ def evaluate(
     """Metrics of a drape (definitions in the module docstring).
 
     Args:
-        garment: :class:`drapebench.garments.Garment` (its ``topology`` is the template; ``vertices``
-            and ``betas`` select the body parts to query).
+        garment: :class:`drapebench.garments.Garment` (its ``topology`` is the template).
         seq: :class:`drapebench.body.BodySequence`; body: the :class:`BodyModel` it poses.
         prediction: (T, V, 3) draped vertices (m) for all T frames of ``seq``.
         reference: optional (T, V, 3) physics-based drape of the same scene.
         material: :class:`drapebench.physics.Material` for the energy breakdown (default Material()).
         skip_transition: leave the sequence's ``n_transition`` leading frames out.
         energies: add the per-frame ``energy_*`` columns.
-        exact: the libigl signed distance instead of the default warp one (same values within the
-            tolerance in :mod:`drapebench.geometry.sdf`).
+        exact: the libigl signed distance and a KD-tree nearest vertex instead of the warp BVH (same
+            values within the tolerance in :mod:`drapebench.geometry.sdf`).
         chunk_frames: frames evaluated at once; the body is posed per chunk unless ``seq`` already
             holds its posed geometry, so memory stays bounded as sequences grow.
     Returns:
@@ -106,14 +94,13 @@ def evaluate(
     ref = None if reference is None else _check_positions(reference, seq.n_frames, garment.n_vertices, "reference")
     first = seq.n_transition if skip_transition and seq.n_transition < seq.n_frames else 0
     faces = body.faces.to(x.device)
-    cand = body_candidates(garment, body).to(x.device)
     jitter = _jitter(x, chunk_frames)[first:]
     chunks, depth_sum, n_inside = [], [], []
     with torch.no_grad():
         for start in range(first, seq.n_frames, chunk_frames):
             stop = min(start + chunk_frames, seq.n_frames)
             body_v, body_n = (t.to(x.device, x.dtype) for t in seq.posed_frames(body, start, stop))
-            cols, nn, depth, n_in = _frame_metrics(x[start:stop], topo, body_v, body_n, faces, cand, exact)
+            cols, nn, depth, n_in = _frame_metrics(x[start:stop], topo, body_v, body_n, faces, exact)
             cols["jitter"] = jitter[start - first : stop - first]
             if ref is not None:
                 cols["vertex_error_mm"] = (x[start:stop] - ref[start:stop].to(x.device, x.dtype)).norm(dim=-1).mean(-1) * 1e3
@@ -151,7 +138,7 @@ def _jitter(x: torch.Tensor, chunk_frames: int) -> torch.Tensor:
     return acc
 
 
-def _frame_metrics(xe, topo, body_v, body_n, faces, cand, exact: bool):
+def _frame_metrics(xe, topo, body_v, body_n, faces, exact: bool):
     """Per-frame metric columns (dict of (B,) tensors) of positions xe (B,V,3) against the posed body
     (B,Vb,3), the nearest-vertex query, and per frame the summed depth (m) and count of the
     penetrating vertices."""
@@ -159,8 +146,8 @@ def _frame_metrics(xe, topo, body_v, body_n, faces, cand, exact: bool):
     d_len = (lengths - topo.rest_edge_lengths).abs()
     strain = d_len / topo.rest_edge_lengths
     rel_a = (face_areas(xe, topo.faces) - topo.face_areas).abs() / topo.face_areas
-    sd = signed_distance(xe, body_v, faces, exact=exact)
-    nn = nearest_body_vertex(xe, body_v, body_n, cand)
+    surface, nn = body_proximity(xe, body_v, body_n, faces, exact=exact)
+    sd = surface.distance
     inside = sd < 0
     n_in = inside.sum(-1)
     depth = torch.where(inside, -sd, torch.zeros_like(sd)).sum(-1)

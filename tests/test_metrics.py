@@ -118,11 +118,12 @@ def test_drift_compares_the_first_and_last_tenth_of_the_frames(sphere_scene):
     assert summary["drift_mm"] == pytest.approx(expected) and summary["drift_mm"] > 1.0
 
 
-@pytest.mark.parametrize("shift", [(0.0, 0.0, 0.0), (0.0, -2.0, 0.0), (0.08, 0.0, 0.0)])
+@pytest.mark.parametrize("shift", [(0.0, 0.0, 0.0), (0.0, -2.0, 0.0), (0.08, 0.0, 0.0), (0.3, 0.0, 0.0)])
 def test_collision_metrics_equal_whole_body_queries_when_the_garment_moves_or_the_shape_differs(body_lowres, shift):
     """A mean-shape tshirt skinned to a walk of a far body shape, in place, 2 m below the feet and
-    moved sideways into the arm: eps_c and penetration_mm equal an exact inside test (libigl's
-    winding number) and distance (libigl's closest point) over the whole body."""
+    moved sideways into the arm (8 cm, 30 cm): eps_c and penetration_mm equal an exact inside test (libigl's
+    winding number) and distance (libigl's closest point) over the whole body, eps_c_nn the nearest
+    vertex of the whole body."""
     import igl
     from scipy.spatial import cKDTree
 
@@ -139,13 +140,16 @@ def test_collision_metrics_equal_whole_body_queries_when_the_garment_moves_or_th
     x = lbs(g.vertices, body.weights[idx], seq.transforms(body)) + torch.tensor(shift)
     summary, frames = evaluate(g, seq, body, x, energies=False)
     F = body.faces.numpy().astype(np.int64)
-    depths, eps_c = [], []
-    for t, bv in enumerate(seq.vertices(body).double().numpy()):
+    depths, eps_c, eps_c_nn = [], [], []
+    for t, (bv, bn) in enumerate(zip(seq.vertices(body).double().numpy(), seq.vertex_normals(body).double().numpy())):
         p = x[t].double().numpy()
         inside = igl.winding_number(bv, F, p) > 0.5
         eps_c.append(inside.mean() * 100)
         depths.append(np.sqrt(igl.point_mesh_squared_distance(p, bv, F)[0])[inside])
+        near = cKDTree(bv).query(p)[1]
+        eps_c_nn.append((((p - bv[near]) * bn[near]).sum(-1) < 0).mean() * 100)
     assert np.allclose(frames["eps_c"], eps_c)
+    assert np.allclose(frames["eps_c_nn"], eps_c_nn)
     depth = np.concatenate(depths)
     assert np.isclose(summary["penetration_mm"], depth.mean() * 1e3 if len(depth) else 0.0, rtol=1e-4)
     if shift[1] == -2.0:

@@ -1,5 +1,6 @@
-"""A posed body as a warp BVH, refitted per frame: the closest face of points and the body's winding
-number at them by signed ray crossings (the fast path of :mod:`drapebench.geometry.sdf`).
+"""A posed body as a warp BVH, refitted per frame: the closest face of points, the body's winding
+number at them by signed ray crossings (the fast path of :mod:`drapebench.geometry.sdf`) and, on
+request, their nearest body vertex (the fast path of :mod:`drapebench.geometry.proximity`).
 
 The body mesh is closed and consistently oriented, so its winding number at a point off the surface
 is an integer: the sum over the triangles a ray from the point crosses of sign(dir . n) (+1 leaving a
@@ -9,12 +10,18 @@ of a triangle edge, grazes a triangle or starts on the surface is recast along t
 fixed directions. Closest faces come from warp's
 BVH in float32, the closest point on that face is computed in float64.
 
+The nearest body vertex is exact over the whole body: the nearest corner of the closest face is at a
+distance r, and every vertex within r belongs to a face whose bounding box meets the cube of half-size
+r around the point, so only those faces' corners are compared (in float32: of two vertices within
+about 1e-7 m of the same distance either may come back).
+
 warp is set up by :mod:`drapebench.warp_env` (the kernel compiles once per machine).
 """
 
 from __future__ import annotations
 
 from functools import lru_cache
+from typing import NamedTuple
 
 import numpy as np
 import torch
@@ -98,6 +105,30 @@ def _closest_on_triangle(p: wp.vec3d, a: wp.vec3d, b: wp.vec3d, c: wp.vec3d):
     return a + ab * _ratio(vb, den) + ac * _ratio(vc, den)
 
 
+@wp.func
+def _nearest_vertex(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), faces: wp.array(dtype=wp.int32), p: wp.vec3, f: int):
+    """Index of the body vertex nearest to p, given f, the face closest to p (module docstring)."""
+    best = faces[3 * f]
+    best_d2 = wp.length_sq(points[best] - p)
+    for k in range(1, 3):
+        d2 = wp.length_sq(points[faces[3 * f + k]] - p)
+        if d2 < best_d2:
+            best_d2 = d2
+            best = faces[3 * f + k]
+    r = wp.sqrt(best_d2)
+    box = wp.vec3(r, r, r)
+    query = wp.mesh_query_aabb(mesh, p - box, p + box)
+    g = int(0)
+    while wp.mesh_query_aabb_next(query, g):
+        for k in range(3):
+            v = faces[3 * g + k]
+            d2 = wp.length_sq(points[v] - p)
+            if d2 < best_d2:
+                best_d2 = d2
+                best = v
+    return best
+
+
 @wp.kernel
 def _query(
     mesh: wp.uint64,
@@ -106,9 +137,11 @@ def _query(
     faces: wp.array(dtype=wp.int32),
     queries: wp.array(dtype=wp.vec3d),
     directions: wp.array(dtype=wp.vec3),
+    want_sign: int,
     winding: wp.array(dtype=wp.int32),
     face: wp.array(dtype=wp.int32),
     closest: wp.array(dtype=wp.vec3d),
+    vertex: wp.array(dtype=wp.int32),
 ):
     i = wp.tid()
     q = queries[i]
@@ -116,6 +149,10 @@ def _query(
     hit = wp.mesh_query_point_no_sign(mesh, p, 1.0e6)
     f = hit.face
     face[i] = f
+    if vertex.shape[0] > 0:
+        vertex[i] = _nearest_vertex(mesh, points, faces, p, f)
+    if want_sign == 0:
+        return
     closest[i] = _closest_on_triangle(q, points64[faces[3 * f]], points64[faces[3 * f + 1]], points64[faces[3 * f + 2]])
     a = points[faces[3 * f]]  # first ray: along the closest face's outward normal, out of the body nearby
     w, ambiguous = _crossings(wp.mesh_get_bvh(mesh), points, faces, p, wp.normalize(wp.cross(points[faces[3 * f + 1]] - a, points[faces[3 * f + 2]] - a)))
@@ -154,14 +191,28 @@ def _body(faces: np.ndarray, vertices: torch.Tensor, device: str, slot: int = 0)
     return _BODIES[key]
 
 
-def query(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """Winding number, closest face and closest point of points against the posed body, frame by frame.
+class BodyQuery(NamedTuple):
+    """What :func:`query` found per point: ``winding`` (B,N) int32 winding number of the body and
+    ``closest`` (B,N,3) float64 closest body point (None when not asked for: ``signed=False``);
+    ``face`` (B,N) long closest face; ``vertex`` (B,N) long nearest body vertex (None unless
+    ``nearest_vertex=True``)."""
+
+    winding: torch.Tensor | None
+    face: torch.Tensor
+    closest: torch.Tensor | None
+    vertex: torch.Tensor | None
+
+
+def query(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: torch.Tensor, signed: bool = True,
+          nearest_vertex: bool = False) -> BodyQuery:  # fmt: skip
+    """Closest face of points against the posed body, frame by frame, with their winding number and
+    closest point (``signed``) and their nearest body vertex (``nearest_vertex``): a :class:`BodyQuery`.
 
     points (B,N,3) m; body_vertices (B,Vb,3); body_faces (F,3) long, a closed consistently oriented
-    mesh (:func:`is_closed`). Returns winding (B,N) int32; face (B,N) long, a closest face (searched
-    in float32: of two faces within about 1e-7 m of the same distance either may come back); the
-    closest point on that face (B,N,3) float64, computed in float64. On the CPU the frames are split
-    over ``torch.get_num_threads()`` threads (warp's CPU kernels release the GIL), each with its own mesh.
+    mesh (:func:`is_closed`). The closest face is searched in float32 (of two faces within about
+    1e-7 m of the same distance either may come back); the closest point on it is computed in
+    float64. On the CPU the frames are split over ``torch.get_num_threads()`` threads (warp's CPU
+    kernels release the GIL), each with its own mesh.
     """
     faces = body_faces.detach().cpu().numpy().astype(np.int64)
     device = "cpu" if points.device.type == "cpu" else f"cuda:{points.device.index or 0}"
@@ -169,19 +220,22 @@ def query(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: torch.T
     verts = body_vertices.detach().to(pts.device, torch.float64).contiguous()
     verts32 = verts.float()
     B, N = pts.shape[:2]
-    winding = torch.empty(B, N, dtype=torch.int32, device=pts.device)
+    n_signed, n_vertex = (N if signed else 0), (N if nearest_vertex else 0)
+    winding = torch.empty(B, n_signed, dtype=torch.int32, device=pts.device)
     face = torch.empty(B, N, dtype=torch.int32, device=pts.device)
-    closest = torch.empty(B, N, 3, dtype=torch.float64, device=pts.device)
+    closest = torch.empty(B, n_signed, 3, dtype=torch.float64, device=pts.device)
+    vertex = torch.empty(B, n_vertex, dtype=torch.int32, device=pts.device)
 
     def frames(slot: int, chunk: range) -> None:
         body = _body(faces, verts32[0].cpu() if device == "cpu" else verts32[0], device, slot)
         for b in chunk:
             wp.copy(body.points, wp.from_torch(verts32[b], dtype=wp.vec3))
-            wp.copy(body.points64, wp.from_torch(verts[b], dtype=wp.vec3d))
+            if signed:
+                wp.copy(body.points64, wp.from_torch(verts[b], dtype=wp.vec3d))
             body.mesh.refit()
             wp.launch(_query, dim=N, device=device, inputs=[body.mesh.id, body.points, body.points64, body.faces, wp.from_torch(pts[b], dtype=wp.vec3d),
-                                                            body.directions, wp.from_torch(winding[b]), wp.from_torch(face[b]),
-                                                            wp.from_torch(closest[b], dtype=wp.vec3d)])  # fmt: skip
+                                                            body.directions, int(signed), wp.from_torch(winding[b]), wp.from_torch(face[b]),
+                                                            wp.from_torch(closest[b], dtype=wp.vec3d), wp.from_torch(vertex[b])])  # fmt: skip
 
     n_threads = min(torch.get_num_threads(), B) if device == "cpu" else 1
     if n_threads <= 1:
@@ -191,7 +245,7 @@ def query(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: torch.T
 
         with ThreadPoolExecutor(n_threads) as pool:
             list(pool.map(frames, range(n_threads), [range(k, B, n_threads) for k in range(n_threads)]))
-    return winding, face.long(), closest
+    return BodyQuery(winding if signed else None, face.long(), closest if signed else None, vertex.long() if nearest_vertex else None)
 
 
 @lru_cache(maxsize=8)

@@ -2,7 +2,10 @@
 culling of body parts far from the garment (``culled_body_vertices``; every query takes the result
 as ``candidates=``). The exact signed distance lives in :mod:`drapebench.geometry.sdf`.
 
-CPU queries use scipy's KD-tree (one tree per frame, one thread); CUDA tensors use chunked
+Given the body's faces (``body_faces=``, a closed mesh such as the baked bodies) and no
+``candidates``, the search is exact over the whole body by the body's warp BVH
+(:mod:`drapebench.geometry.body_bvh`, refitted per frame, frames split over torch's threads).
+Otherwise CPU queries use scipy's KD-tree (one tree per frame, one thread) and CUDA tensors chunked
 ``torch.cdist``. Positions are in metres, float32 or float64 (results follow the dtype of ``points``).
 """
 
@@ -93,15 +96,23 @@ def body_vertex_tree(body_vertices: torch.Tensor, candidates: torch.Tensor | Non
 
 
 def nearest_indices(points: torch.Tensor, body_vertices: torch.Tensor, candidates: torch.Tensor | None = None,
-                    tree: cKDTree | None = None) -> torch.Tensor:  # fmt: skip
+                    tree: cKDTree | None = None, body_faces: torch.Tensor | None = None) -> torch.Tensor:  # fmt: skip
     """Index (B,N) long of the nearest body vertex per point (not differentiable).
 
     points (B,N,3), body_vertices (B,Vb,3) or (1,Vb,3); ``candidates`` (C,) restricts the search to
     those body vertices (returned indices are still global body vertex indices); ``tree`` is
-    :func:`body_vertex_tree` of the same single body frame and candidates (built here when None).
+    :func:`body_vertex_tree` of the same single body frame and candidates (built here when None);
+    ``body_faces`` (F,3) of a closed body without ``candidates`` or ``tree``: the warp BVH search
+    (module docstring), the same vertex up to float32 near-ties.
     """
     points, body_vertices = _as_batch(points, body_vertices)
     cand = _check_candidates(candidates, body_vertices.shape[1], body_vertices.device)
+    if body_faces is not None and cand is None and tree is None:
+        from drapebench.geometry import body_bvh
+
+        faces = torch.as_tensor(body_faces).long()
+        if body_bvh.is_closed(faces):
+            return body_bvh.query(points, body_vertices, faces, signed=False, nearest_vertex=True).vertex.to(points.device)
     shared = len(body_vertices) == 1 or body_vertices.stride(0) == 0  # one body frame for the batch: one search structure
     if tree is not None and not shared:
         raise ValueError("tree= is a search structure of one body frame; pass body_vertices as (1, Vb, 3)")
@@ -125,17 +136,25 @@ def nearest_body_vertex(
     body_normals: torch.Tensor,
     candidates: torch.Tensor | None = None,
     tree: cKDTree | None = None,
+    body_faces: torch.Tensor | None = None,
 ) -> NearestVertex:
     """Nearest body vertex per garment point, with the signed normal distance (GAPS/SNUG collision).
 
     points (B,N,3) m; body_vertices (B,Vb,3) (or (1,Vb,3), shared by the batch); body_normals
     (B,Vb,3) unit area-weighted vertex normals; ``candidates`` (C,) body vertex indices to search
     (see :func:`culled_body_vertices`); ``tree`` a prebuilt :func:`body_vertex_tree` of a single body
-    frame. Differentiable w.r.t. ``points`` and the body through the gather (the index selection itself
-    is not). Returns :class:`NearestVertex`.
+    frame; ``body_faces`` (F,3): search the whole body by its BVH (:func:`nearest_indices`).
+    Differentiable w.r.t. ``points`` and the body through the gather (the index selection itself is
+    not). Returns :class:`NearestVertex`.
     """
     points, body_vertices, body_normals = _as_batch(points, body_vertices, body_normals)
-    idx = nearest_indices(points, body_vertices, candidates, tree)
+    return nearest_from_indices(points, body_vertices, body_normals, nearest_indices(points, body_vertices, candidates, tree, body_faces))
+
+
+def nearest_from_indices(points: torch.Tensor, body_vertices: torch.Tensor, body_normals: torch.Tensor, idx: torch.Tensor) -> NearestVertex:
+    """:class:`NearestVertex` of points (B,N,3) whose nearest body vertices are idx (B,N) long, on the
+    body (B,Vb,3) with unit normals (B,Vb,3) (B may be 1 or broadcast); differentiable through the gather."""
+    body_vertices, body_normals = (t.expand(points.shape[0], -1, -1) for t in (body_vertices, body_normals))
     gather = idx[..., None].expand(-1, -1, 3)
     p = torch.gather(body_vertices, 1, gather).to(points.dtype)
     n = torch.gather(body_normals, 1, gather).to(points.dtype)

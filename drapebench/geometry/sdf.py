@@ -33,7 +33,7 @@ import torch
 from scipy.spatial import cKDTree
 
 from drapebench.geometry import body_bvh
-from drapebench.geometry.proximity import _as_batch
+from drapebench.geometry.proximity import NearestVertex, _as_batch, nearest_body_vertex, nearest_from_indices
 
 
 @dataclass
@@ -171,7 +171,7 @@ def inside_body(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: t
     points, body_vertices = _as_batch(points, body_vertices)
     faces = torch.as_tensor(body_faces).long()
     if not exact and body_bvh.is_closed(faces):
-        return (body_bvh.query(points, body_vertices, faces)[0] > 0).to(points.device)
+        return (body_bvh.query(points, body_vertices, faces).winding > 0).to(points.device)
     import igl
 
     F = faces.detach().cpu().numpy().astype(np.int64)
@@ -191,6 +191,14 @@ def _near_faces(points: torch.Tensor, body: torch.Tensor, faces: torch.Tensor) -
     return torch.nonzero(keep).squeeze(1)
 
 
+def _checked_faces(body_faces: torch.Tensor, body_vertices: torch.Tensor) -> torch.Tensor:
+    """body_faces as (F,3) long on the body's device, or a ValueError naming what is wrong."""
+    faces = torch.as_tensor(body_faces, device=body_vertices.device).long()
+    if faces.dim() != 2 or faces.shape[1] != 3 or len(faces) == 0 or faces.max() >= body_vertices.shape[1] or faces.min() < 0:
+        raise ValueError(f"body_faces must be (F, 3) indices into the {body_vertices.shape[1]} body vertices")
+    return faces
+
+
 def closest_body_point(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: torch.Tensor, exact: bool = False) -> SurfacePoint:
     """Closest point on the posed body triangle mesh and the signed distance (negative inside).
 
@@ -202,24 +210,42 @@ def closest_body_point(points: torch.Tensor, body_vertices: torch.Tensor, body_f
     :class:`SurfacePoint`.
     """
     points, body_vertices = _as_batch(points, body_vertices)
-    faces = torch.as_tensor(body_faces, device=body_vertices.device).long()
-    if faces.dim() != 2 or faces.shape[1] != 3 or len(faces) == 0 or faces.max() >= body_vertices.shape[1] or faces.min() < 0:
-        raise ValueError(f"body_faces must be (F, 3) indices into the {body_vertices.shape[1]} body vertices")
+    faces = _checked_faces(body_faces, body_vertices)
     if exact or not body_bvh.is_closed(faces):
         return _closest_exact(points, body_vertices, faces)
-    winding, face, cp = body_bvh.query(points, body_vertices, faces)
+    return _surface_point(points, body_vertices, faces, body_bvh.query(points, body_vertices, faces))
+
+
+def body_proximity(points: torch.Tensor, body_vertices: torch.Tensor, body_normals: torch.Tensor, body_faces: torch.Tensor,
+                   exact: bool = False) -> tuple[SurfacePoint, NearestVertex]:  # fmt: skip
+    """:func:`closest_body_point` and :func:`drapebench.geometry.proximity.nearest_body_vertex` (whole
+    body) of the same points in one pass over the body (one BVH refit per frame on the default path).
+
+    points (B,N,3) m; body_vertices and body_normals (B,Vb,3) (or (1,Vb,3)); body_faces (F,3) long.
+    ``exact=True`` (or an open mesh): libigl for the surface point, scipy's KD-tree for the vertex.
+    """
+    points, body_vertices, body_normals = _as_batch(points, body_vertices, body_normals)
+    faces = _checked_faces(body_faces, body_vertices)
+    if exact or not body_bvh.is_closed(faces):
+        return _closest_exact(points, body_vertices, faces), nearest_body_vertex(points, body_vertices, body_normals)
+    found = body_bvh.query(points, body_vertices, faces, nearest_vertex=True)
+    return _surface_point(points, body_vertices, faces, found), nearest_from_indices(points, body_vertices, body_normals, found.vertex.to(points.device))
+
+
+def _surface_point(points: torch.Tensor, body_vertices: torch.Tensor, faces: torch.Tensor, found: body_bvh.BodyQuery) -> SurfacePoint:
+    """:class:`SurfacePoint` of points (B,N,3) from a signed :func:`body_bvh.query` of them."""
     with torch.no_grad():
-        offset = points.detach().double() - cp
+        offset = points.detach().double() - found.closest
         d = offset.norm(dim=-1)
-        sign = torch.where(winding.to(d.device) > 0, -torch.ones_like(d), torch.ones_like(d))
+        sign = torch.where(found.winding.to(d.device) > 0, -torch.ones_like(d), torch.ones_like(d))
         direction = offset / d.clamp_min(1e-12)[..., None] * sign[..., None]
         on = d <= 1e-12
         if on.any():  # on the surface: the closest face's outward normal
-            tri = body_vertices.detach().double()[torch.nonzero(on)[:, 0][:, None], faces[face[on]].to(body_vertices.device)]
+            tri = body_vertices.detach().double()[torch.nonzero(on)[:, 0][:, None], faces[found.face[on]].to(body_vertices.device)]
             fn = torch.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], dim=-1)
             direction[on] = fn / fn.norm(dim=-1, keepdim=True).clamp_min(1e-30)
     dt = points.dtype
-    return SurfacePoint((sign * d).to(dt), cp.to(dt), face.to(points.device), direction.to(dt))
+    return SurfacePoint((sign * d).to(dt), found.closest.to(dt), found.face.to(points.device), direction.to(dt))
 
 
 def _closest_exact(points: torch.Tensor, body_vertices: torch.Tensor, faces: torch.Tensor) -> SurfacePoint:

@@ -84,15 +84,16 @@ def test_frames_split_over_threads_give_each_frame_its_own_answer(monkeypatch):
     V = torch.stack([torch.as_tensor(mesh.vertices) * (1 + 0.1 * b) + 0.05 * b for b in range(5)])
     p = torch.randn(5, 200, 3, dtype=torch.float64) * 0.6
     monkeypatch.setattr(torch, "get_num_threads", lambda: 3)
-    split = body_bvh.query(p, V, F)
+    split = body_bvh.query(p, V, F, nearest_vertex=True)
     monkeypatch.setattr(torch, "get_num_threads", lambda: 1)
-    one = [body_bvh.query(p[b : b + 1], V[b : b + 1], F) for b in range(5)]
+    one = [body_bvh.query(p[b : b + 1], V[b : b + 1], F, nearest_vertex=True) for b in range(5)]
     for got, want in zip(split, zip(*one)):
         assert torch.equal(got, torch.cat(want))
+    assert torch.equal(split.vertex, torch.cdist(p, V).argmin(-1))  # each frame's nearest vertex on its own sphere
     r = (p - 0.05 * torch.arange(5.0, dtype=torch.float64)[:, None, None]).norm(dim=-1)
     radius = 0.5 * (1 + 0.1 * torch.arange(5.0, dtype=torch.float64))[:, None]
     clear = (r - radius).abs() > 0.05 * radius  # away from the faceted sphere's surface
-    assert torch.equal((split[0] > 0)[clear], (r < radius)[clear])  # each frame tested against its own sphere
+    assert torch.equal((split.winding > 0)[clear], (r < radius)[clear])  # each frame tested against its own sphere
 
 
 def test_eps_c_count_is_exact_for_points_placed_in_a_box():
@@ -133,8 +134,9 @@ def test_ray_crossings_count_overlapping_parts_and_open_meshes_take_the_exact_pa
     removed is not closed and is measured by the libigl path."""
     V, F = _two_overlapping_boxes()
     p = torch.tensor([[[0.15, 0.0, 0.0], [-0.15, 0.0, 0.0], [0.15, 0.0, 0.15], [0.5, 0.5, 0.5]]], dtype=torch.float64)
-    winding, face, closest = body_bvh.query(p, torch.as_tensor(V)[None], torch.as_tensor(F))
-    assert winding.tolist() == [[2, 1, 1, 0]] and face.shape == (1, 4) and closest.shape == (1, 4, 3)
+    found = body_bvh.query(p, torch.as_tensor(V)[None], torch.as_tensor(F))
+    assert found.winding.tolist() == [[2, 1, 1, 0]] and found.face.shape == (1, 4) and found.closest.shape == (1, 4, 3)
+    assert found.vertex is None
     box = trimesh.creation.box((0.4, 0.3, 0.2))
     V1, F1 = torch.as_tensor(box.vertices)[None], torch.as_tensor(box.faces)
     flipped = F1.clone()
