@@ -1,6 +1,8 @@
 """evaluate() frames per second, default signed distance (warp BVH, ray-crossing winding number)
 against ``exact=True`` (libigl), and the largest difference between the two paths on a walk and a
-squat (where the body intersects itself): signed distance (mm), eps_c (%), penetration_mm.
+squat (where the body intersects itself): signed distance (mm), eps_c (%), penetration_mm. Then the
+collision term of training (GAPS/SNUG: nearest body vertex among those near the garment, KD-tree, and
+the cubic penalty, forward and backward) in frames per second.
 
 Run: python benchmarks/bench_metrics.py  (CPU, float32; garments skinned to the motion; the body is
 posed before timing, as after a method's drape)
@@ -16,8 +18,10 @@ from timing import best
 from drapebench.body import load_body, make_sequence
 from drapebench.body.lbs import lbs
 from drapebench.garments import make_garment
+from drapebench.geometry.proximity import culled_body_vertices, nearest_body_vertex
 from drapebench.geometry.sdf import signed_distance
 from drapebench.metrics import evaluate
+from drapebench.physics import collision_energy
 
 
 def _scene(body, kind: str, motion: str, n_frames: int):
@@ -53,6 +57,22 @@ def main(n_frames: int = 40, n_exact: int = 8) -> None:
                       f"{(a['eps_c'] - b['eps_c']).abs().max():.2g} %, max |penetration_mm diff| "
                       f"{(a['penetration_mm'] - b['penetration_mm']).abs().max():.2g} mm")  # fmt: skip
         sys.stdout.flush()
+        _training_collision(body, n_frames)
+
+
+def _training_collision(body, n_frames: int) -> None:
+    """Frames per second of the training collision term for the tshirt on a walk."""
+    g, seq, x = _scene(body, "tshirt", "walk", n_frames)
+    bv, bn = seq.vertices(body), seq.vertex_normals(body)
+    cand = culled_body_vertices(g.vertices, body.v_template, body.weights)
+    x = x.clone().requires_grad_(True)
+
+    def step():
+        nn = nearest_body_vertex(x, bv, bn, cand)
+        collision_energy(x, nn.point, nn.normal).sum().backward()
+
+    print(f"training collision term, tshirt on {body.name} ({len(cand)} of {body.n_vertices} body vertices searched): "
+          f"{n_frames / best(step, 3):.0f} frames/s (nearest vertex, penalty, gradient)")  # fmt: skip
 
 
 if __name__ == "__main__":

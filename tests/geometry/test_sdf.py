@@ -222,3 +222,22 @@ def test_closest_point_search_is_exact_anywhere(body_lowres, shift):
         assert np.array_equal((sp.distance[b] < 0).numpy()[clear], (w > 0.5)[clear])
     if shift[1] < 0:
         assert (sp.distance > 0.5).all()
+
+
+@pytest.mark.parametrize("shift", [(0.0, -2.5, 0.0), (0.0, 0.0, 0.0)])
+def test_body_proximity_finds_both_answers_in_one_pass(body_lowres, shift):
+    """body_proximity's one BVH pass gives the signed distance of closest_body_point and the whole
+    body's nearest vertex (brute force), on both paths, near the body and far below it."""
+    from drapebench.geometry.sdf import body_proximity
+
+    body = body_lowres
+    bv, x = _squat_points(body, 6)
+    bv, x = bv[-2:], x[-2:] + torch.tensor(shift, dtype=torch.float64)
+    bn = torch.nn.functional.normalize(torch.randn_like(bv), dim=-1)
+    brute = torch.cdist(x, bv).min(-1).values
+    for exact in (False, True):
+        surface, nn = body_proximity(x, bv, bn, body.faces, exact=exact)
+        assert torch.allclose(surface.distance, signed_distance(x, bv, body.faces, exact=exact), atol=1e-9)
+        assert torch.allclose((x - nn.point).norm(dim=-1), brute, atol=1e-6)
+        assert torch.allclose(nn.distance, ((x - nn.point) * nn.normal).sum(-1))
+        assert torch.equal(nn.normal, bn.gather(1, nn.index[..., None].expand(-1, -1, 3)))
