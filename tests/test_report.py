@@ -1,5 +1,6 @@
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -290,3 +291,15 @@ def test_the_stability_table_has_a_row_per_run_and_failed_runs_with_their_cause(
     assert len(rows) == 3 and "float64" in rows[1] and "12.400" in rows[1]
     assert rows[2].count("failed") == 4 and "gaps on skirt stress b0=2 float32 failed: NaN/Inf in 3 of 300 frames" in md
     assert "max strain (%)" in md and "drift (mm)" in md
+
+
+def test_labels_of_crowded_points_stack_apart_and_a_lone_point_keeps_its_own():
+    from drapebench.report import label_places
+
+    ms = np.array([4.0, 4.5, 3.9, 400.0])
+    err = np.array([17.7, 17.8, 16.7, 40.0])  # the crowd lies within 6 % of the 23.3 mm span
+    places = label_places(ms, err)
+    assert places[3] == (3, 3.0)  # far from the rest: beside itself
+    assert {p[0] for p in places[:3]} == {1}  # the crowd's labels start beside its highest point
+    assert sorted(p[1] for p in places[:3]) == [-15.0, -6.0, 3.0]  # 9 points apart, highest first
+    assert places[1] == (1, 3.0) and places[2][1] == -15.0
