@@ -5,8 +5,8 @@ as ``candidates=``). The exact signed distance lives in :mod:`drapebench.geometr
 Given the body's faces (``body_faces=``, a closed mesh such as the baked bodies) and no
 ``candidates``, the search is exact over the whole body by the body's warp BVH
 (:mod:`drapebench.geometry.body_bvh`, refitted per frame, frames split over torch's threads).
-Otherwise CPU queries use scipy's KD-tree (one tree per frame, one thread) and CUDA tensors chunked
-``torch.cdist``. Positions are in metres, float32 or float64 (results follow the dtype of ``points``).
+Otherwise CPU queries use scipy's KD-tree (one tree per frame, the frames split over torch's threads)
+and CUDA tensors chunked ``torch.cdist``. Positions are in metres, float32 or float64 (results follow the dtype of ``points``).
 """
 
 from __future__ import annotations
@@ -125,7 +125,18 @@ def nearest_indices(points: torch.Tensor, body_vertices: torch.Tensor, candidate
     else:
         p, q = pts.cpu().numpy(), body.cpu().numpy()
         tree = tree or (cKDTree(q[0]) if shared else None)
-        idx = np.stack([(tree or cKDTree(q[b])).query(p[b], workers=1)[1] for b in range(len(p))])
+
+        def frame(b: int) -> np.ndarray:
+            return (tree or cKDTree(q[b])).query(p[b], workers=1)[1]
+
+        n_threads = min(torch.get_num_threads(), len(p))
+        if n_threads <= 1:
+            idx = np.stack([frame(b) for b in range(len(p))])
+        else:  # scipy builds and queries its trees without the GIL: one frame per thread
+            from concurrent.futures import ThreadPoolExecutor
+
+            with ThreadPoolExecutor(n_threads) as pool:
+                idx = np.stack(list(pool.map(frame, range(len(p)))))
         idx = torch.from_numpy(idx).long().to(points.device)
     return idx if cand is None else cand[idx]
 

@@ -50,6 +50,17 @@ def test_the_body_bvh_finds_the_nearest_vertex_of_the_whole_body(body_lowres, sc
     assert torch.allclose((x.detach() - one.point).norm(dim=-1).double(), torch.cdist(x.detach().double(), bv[:1].double()).min(-1).values, atol=1e-6)
 
 
+def test_frames_split_over_threads_each_search_their_own_body(monkeypatch):
+    """The KD-tree path hands frames to torch's threads: each frame is answered against its own body."""
+    g = torch.Generator().manual_seed(5)
+    x = torch.randn(5, 300, 3, generator=g)
+    body = torch.randn(5, 400, 3, generator=g) + torch.arange(5.0)[:, None, None]
+    normals = torch.nn.functional.normalize(torch.randn(5, 400, 3, generator=g), dim=-1)
+    monkeypatch.setattr(torch, "get_num_threads", lambda: 3)
+    split = nearest_body_vertex(x, body, normals)
+    assert torch.equal(split.index, torch.cdist(x.double(), body.double()).argmin(-1))
+
+
 def test_a_prebuilt_tree_gives_the_same_answers_and_is_only_for_one_body_frame():
     g = torch.Generator().manual_seed(2)
     x = torch.randn(2, 100, 3, generator=g, dtype=torch.float64)
