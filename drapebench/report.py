@@ -199,11 +199,12 @@ def runtime_error(df: pd.DataFrame) -> str:
     return "vertex_error_mm" if "vertex_error_mm" in df and df["vertex_error_mm"].notna().any() else "eps_e"
 
 
-def label_places(ms: np.ndarray, err: np.ndarray) -> list[tuple[int, float]]:
+def label_places(ms: np.ndarray, err: np.ndarray) -> list[tuple[int, int, float]]:
     """Where the labels of a log-x scatter (ms (N,) > 0, err (N,)) go so that labels of nearby points do
-    not overlap: per point, the index of the point its label is placed beside and the label's vertical
-    offset from there (points). Points within 0.2 decades and 6 % of the y span of each other form a
-    cluster, whose labels stack 9 points apart from beside its highest point down."""
+    not overlap: per point, the indices of the points whose x and whose y its label is placed beside and
+    the label's vertical offset from there (points). Points within 0.2 decades and 6 % of the y span of
+    each other form a cluster, whose labels stack 9 points apart, right of its rightmost point, from the
+    height of its highest point down."""
     ms, err = np.asarray(ms, float), np.asarray(err, float)
     u = np.log10(np.maximum(ms, 1e-12))
     finite = err[np.isfinite(err)]
@@ -220,11 +221,12 @@ def label_places(ms: np.ndarray, err: np.ndarray) -> list[tuple[int, float]]:
         for j in range(i):
             if abs(u[i] - u[j]) < 0.2 and abs(v[i] - v[j]) < 0.06:
                 parent[root(i)] = root(j)
-    places = [(i, 3.0) for i in range(len(ms))]
+    places = [(i, i, 3.0) for i in range(len(ms))]
     for c in {root(i) for i in range(len(ms))}:
         members = sorted((i for i in range(len(ms)) if root(i) == c), key=lambda i: -np.nan_to_num(err[i], nan=-np.inf))
+        right = max(members, key=lambda i: ms[i])
         for k, i in enumerate(members):
-            places[i] = (members[0], 3.0 - 9.0 * k)
+            places[i] = (right, members[0], 3.0 - 9.0 * k)
     return places
 
 
@@ -235,27 +237,40 @@ def _annotate(ax, labels, ms, err, colours=None, **kwargs) -> None:
 
     ms, err = np.asarray(ms, float), np.asarray(err, float)
     colours = list(colours) if colours is not None else ["black"] * len(ms)
-    for label, x, y, (anchor, dy), colour in zip(labels, ms, err, label_places(ms, err), colours):
-        where = OffsetFrom(ax.transData, (ms[anchor], err[anchor]), unit="points")
-        line = dict(arrowstyle="-", lw=0.5, color=colour, shrinkA=0, shrinkB=3) if dy != 3.0 else None
-        ax.annotate(label, (x, y), xytext=(4, dy), textcoords=where, fontsize=7, color=colour,
-                    va="bottom" if dy == 3.0 else "center", arrowprops=line, **kwargs)  # fmt: skip
+    for i, (label, x, y, (at_x, at_y, dy), colour) in enumerate(zip(labels, ms, err, label_places(ms, err), colours)):
+        where = OffsetFrom(ax.transData, (ms[at_x], err[at_y]), unit="points")
+        beside = at_x == at_y == i
+        line = None if beside else dict(arrowstyle="-", lw=0.5, color=colour, shrinkA=0, shrinkB=3)
+        ax.annotate(label, (x, y), xytext=(6, dy), textcoords=where, fontsize=7, color=colour,
+                    va="bottom" if beside else "center", arrowprops=line, **kwargs)  # fmt: skip
+    ax.margins(x=0.08, y=0.12)  # room for the labels of the outermost points
 
 
 def runtime_plot(df: pd.DataFrame, path: Path, title: str = "") -> Path:
-    """Scatter of drape time (ms/frame, log x) against :func:`runtime_error`, one marker per run, a
-    colour per method, labelled with its garment."""
+    """Scatter of drape time (ms/frame, log x) against :func:`runtime_error`, one marker per run: its
+    colour the method, its shape the scene where the runs' scenes differ (garment, body shape, motion,
+    body: those that vary), each with a legend."""
     import matplotlib
     import matplotlib.ticker
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
 
     error = runtime_error(df)
     fig, ax = plt.subplots(figsize=(6.4, 4.4))
-    for method, g in df.groupby("method", sort=False):
-        ax.scatter(g["ms_per_frame"], g[error], label=method, s=36)
-    _annotate(ax, df["garment"], df["ms_per_frame"], df[error], alpha=0.8)
+    varying = [c for c in ("garment", "shape", "motion", "body") if c in df and df[c].nunique() > 1]
+    scene = df[varying].astype(str).agg(", ".join, axis=1) if varying else pd.Series("", index=df.index)
+    shapes = {k: "os^DvPX*<>"[i % 10] for i, k in enumerate(dict.fromkeys(scene))}
+    colour = {m: f"C{i % 10}" for i, m in enumerate(dict.fromkeys(df["method"]))}
+    for (method, key), g in df.groupby([df["method"], scene], sort=False):
+        ax.scatter(g["ms_per_frame"], g[error], color=colour[method], marker=shapes[key], s=36)
+    methods = [Line2D([], [], color=c, marker="o", ls="", label=m) for m, c in colour.items()]
+    ax.add_artist(ax.legend(handles=methods, fontsize=7, title="method", title_fontsize=7, loc="upper right"))
+    if varying:
+        scenes = [Line2D([], [], color="grey", marker=m, ls="", label=k) for k, m in shapes.items()]
+        names = {"shape": "body shape"}
+        ax.legend(handles=scenes, fontsize=7, title=", ".join(names.get(c, c) for c in varying), title_fontsize=7, loc="upper center")
     ax.set_xscale("log")
     plain = matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}")  # 2, not 2 x 10^0
     ax.xaxis.set_major_formatter(plain)
@@ -265,7 +280,6 @@ def runtime_plot(df: pd.DataFrame, path: Path, title: str = "") -> Path:
     info = METRICS[error]
     ax.set_ylabel(f"{error}: {info.meaning} ({info.unit})", fontsize=9)
     ax.set_title(f"{title + ': ' if title else ''}runtime against {error} (lower left is better)", fontsize=10)
-    ax.legend(fontsize=8, title="method", title_fontsize=8)
     ax.grid(alpha=0.3)
     return save_figure(fig, path)
 

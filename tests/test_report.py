@@ -299,7 +299,10 @@ def test_labels_of_crowded_points_stack_apart_and_a_lone_point_keeps_its_own():
     ms = np.array([4.0, 4.5, 3.9, 400.0])
     err = np.array([17.7, 17.8, 16.7, 40.0])  # the crowd lies within 6 % of the 23.3 mm span
     places = label_places(ms, err)
-    assert places[3] == (3, 3.0)  # far from the rest: beside itself
-    assert {p[0] for p in places[:3]} == {1}  # the crowd's labels start beside its highest point
-    assert sorted(p[1] for p in places[:3]) == [-15.0, -6.0, 3.0]  # 9 points apart, highest first
-    assert places[1] == (1, 3.0) and places[2][1] == -15.0
+    assert places[3] == (3, 3, 3.0)  # far from the rest: beside itself
+    assert {p[:2] for p in places[:3]} == {(1, 1)}  # the crowd's labels start beside its highest, rightmost point
+    assert sorted(p[2] for p in places[:3]) == [-15.0, -6.0, 3.0]  # 9 points apart, highest first
+    assert places[1] == (1, 1, 3.0) and places[2][2] == -15.0
+    # the highest point left of the other: the labels go right of the rightmost, not over its marker
+    places = label_places(np.array([0.364, 0.417, 1000.0]), np.array([42.9, 41.6, 0.0]))
+    assert places[0] == (1, 0, 3.0) and places[1] == (1, 0, -6.0)
