@@ -298,8 +298,12 @@ def pareto_plot(df: pd.DataFrame, path: Path, title: str = "") -> Path:
     means = df.groupby(["garment", "method"], sort=False)[["ms_per_frame", error]].mean().reset_index()
     garments = list(dict.fromkeys(means["garment"]))
     colours = {m: f"C{i}" for i, m in enumerate(dict.fromkeys(means["method"]))}
-    fig, axes = plt.subplots(1, len(garments), figsize=(4.6 * len(garments), 4.2), squeeze=False)
-    for ax, garment in zip(axes[0], garments):
+    cols = len(garments) if len(garments) <= 3 else 2  # four garments: two rows of two
+    rows = -(-len(garments) // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.6 * cols, 4.0 * rows + 0.6), squeeze=False)
+    for ax in axes.flat[len(garments):]:
+        ax.set_visible(False)
+    for ax, garment in zip(axes.flat, garments):
         g = means[(means["garment"] == garment) & means[error].notna()].sort_values("ms_per_frame")
         for _, r in g.iterrows():
             ax.scatter(r["ms_per_frame"], r[error], color=colours[r["method"]], s=40)

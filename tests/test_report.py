@@ -202,6 +202,9 @@ def test_runtime_vs_error_has_a_pareto_panel_per_garment_and_the_speed_up_over_t
 
     height, width = matplotlib.image.imread(path).shape[:2]
     assert width > 1.8 * height  # two panels side by side
+    four = pd.concat([df, df.assign(garment=df["garment"] + "_b")])
+    height, width = matplotlib.image.imread(pareto_plot(four, tmp_path / "four.png")).shape[:2]
+    assert 0.8 * height < width < 1.5 * height  # four garments: two rows of two
     md = write_table([FIXTURES], "runtime_vs_error", tmp_path / "rve", command="pytest")[0]
     assert "ms/frame" in md.read_text() and "Speed-up over `pbs`" in md.read_text()
 
