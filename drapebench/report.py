@@ -185,12 +185,19 @@ def scene(df: pd.DataFrame) -> str:
     return f"Scene: garments {names('garment')}; body {names('body')}; motions {names('motion')}; reference drape {ref}."
 
 
+MAX_MARKDOWN_COLUMNS = 12  # a wider grouped table is written as one table per group
+
+
 def _markdown(t: pd.DataFrame) -> str:
+    """``t`` as markdown: its (group, metric) columns flattened to "group metric", or, past
+    ``MAX_MARKDOWN_COLUMNS``, one table per group under a "**group**" line."""
+    if not isinstance(t.columns, pd.MultiIndex):
+        return t.rename(columns=metric_label).to_markdown()
+    groups = list(dict.fromkeys(t.columns.get_level_values(0)))
+    if len(t.columns) > MAX_MARKDOWN_COLUMNS and len(groups) > 1:
+        return "\n\n".join(f"**{g}**\n\n{t[g].to_markdown()}" for g in groups)
     flat = t.copy()
-    if isinstance(t.columns, pd.MultiIndex):
-        flat.columns = [f"{g} {m}" for g, m in t.columns]
-    else:
-        flat.columns = [metric_label(c) for c in t.columns]
+    flat.columns = [f"{g} {m}" for g, m in t.columns]
     return flat.to_markdown()
 
 

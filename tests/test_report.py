@@ -309,3 +309,17 @@ def test_labels_of_crowded_points_stack_apart_and_a_lone_point_keeps_its_own():
     # the highest point left of the other: the labels go right of the rightmost, not over its marker
     places = label_places(np.array([0.364, 0.417, 1000.0]), np.array([42.9, 41.6, 0.0]))
     assert places[0] == (1, 0, 3.0) and places[1] == (1, 0, -6.0)
+
+
+def test_a_wide_grouped_table_is_written_as_one_markdown_table_per_group():
+    from drapebench.report import MAX_MARKDOWN_COLUMNS, _markdown
+
+    def grouped(n_groups: int) -> pd.DataFrame:
+        cols = pd.MultiIndex.from_product([[f"g{i}" for i in range(n_groups)], ["ε_e (%)", "ε_c (%)", "err. (mm)"]])
+        return pd.DataFrame([["1"] * len(cols)], index=pd.Index(["lbs"], name="method"), columns=cols)
+
+    narrow = _markdown(grouped(2))
+    assert narrow.count("| method") == 1 and "g1 ε_c (%)" in narrow
+    n = MAX_MARKDOWN_COLUMNS // 3 + 1
+    wide = _markdown(grouped(n))
+    assert wide.count("| method") == n and f"**g{n - 1}**" in wide and "g1 ε_c" not in wide
