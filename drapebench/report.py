@@ -237,7 +237,7 @@ def label_places(ms: np.ndarray, err: np.ndarray) -> list[tuple[int, int, float]
     return places
 
 
-def _annotate(ax, labels, ms, err, colours=None, **kwargs) -> None:
+def _annotate(ax, labels, ms, err, colours=None) -> None:
     """Labels beside the points (ms, err) of a log-x scatter, stacked where points crowd (:func:`label_places`),
     each joined to its point by a thin line when it is not beside it; ``colours``: one text colour per label."""
     from matplotlib.text import OffsetFrom
@@ -249,7 +249,7 @@ def _annotate(ax, labels, ms, err, colours=None, **kwargs) -> None:
         beside = at_x == at_y == i
         line = None if beside else dict(arrowstyle="-", lw=0.5, color=colour, shrinkA=0, shrinkB=3)
         ax.annotate(label, (x, y), xytext=(6, dy), textcoords=where, fontsize=7, color=colour,
-                    va="bottom" if beside else "center", arrowprops=line, **kwargs)  # fmt: skip
+                    va="bottom" if beside else "center", arrowprops=line)  # fmt: skip
     ax.margins(x=0.08, y=0.12)  # room for the labels of the outermost points
 
 
