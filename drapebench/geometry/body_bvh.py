@@ -137,7 +137,6 @@ def _query(
     faces: wp.array(dtype=wp.int32),
     queries: wp.array(dtype=wp.vec3d),
     directions: wp.array(dtype=wp.vec3),
-    want_sign: int,
     winding: wp.array(dtype=wp.int32),
     face: wp.array(dtype=wp.int32),
     closest: wp.array(dtype=wp.vec3d),
@@ -151,8 +150,6 @@ def _query(
     face[i] = f
     if vertex.shape[0] > 0:
         vertex[i] = _nearest_vertex(mesh, points, faces, p, f)
-    if want_sign == 0:
-        return
     closest[i] = _closest_on_triangle(q, points64[faces[3 * f]], points64[faces[3 * f + 1]], points64[faces[3 * f + 2]])
     a = points[faces[3 * f]]  # first ray: along the closest face's outward normal, out of the body nearby
     w, ambiguous = _crossings(wp.mesh_get_bvh(mesh), points, faces, p, wp.normalize(wp.cross(points[faces[3 * f + 1]] - a, points[faces[3 * f + 2]] - a)))
@@ -192,21 +189,19 @@ def _body(faces: np.ndarray, vertices: torch.Tensor, device: str, slot: int = 0)
 
 
 class BodyQuery(NamedTuple):
-    """What :func:`query` found per point: ``winding`` (B,N) int32 winding number of the body and
-    ``closest`` (B,N,3) float64 closest body point (None when not asked for: ``signed=False``);
-    ``face`` (B,N) long closest face; ``vertex`` (B,N) long nearest body vertex (None unless
-    ``nearest_vertex=True``)."""
+    """What :func:`query` found per point: ``winding`` (B,N) int32 winding number of the body;
+    ``face`` (B,N) long closest face; ``closest`` (B,N,3) float64 closest body point; ``vertex`` (B,N)
+    long nearest body vertex (None unless ``nearest_vertex=True``)."""
 
-    winding: torch.Tensor | None
+    winding: torch.Tensor
     face: torch.Tensor
-    closest: torch.Tensor | None
+    closest: torch.Tensor
     vertex: torch.Tensor | None
 
 
-def query(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: torch.Tensor, signed: bool = True,
-          nearest_vertex: bool = False) -> BodyQuery:  # fmt: skip
-    """Closest face of points against the posed body, frame by frame, with their winding number and
-    closest point (``signed``) and their nearest body vertex (``nearest_vertex``): a :class:`BodyQuery`.
+def query(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: torch.Tensor, nearest_vertex: bool = False) -> BodyQuery:
+    """Winding number, closest face and closest point of points against the posed body, frame by
+    frame, and their nearest body vertex (``nearest_vertex``): a :class:`BodyQuery`.
 
     points (B,N,3) m; body_vertices (B,Vb,3); body_faces (F,3) long, a closed consistently oriented
     mesh (:func:`is_closed`). The closest face is searched in float32 (of two faces within about
@@ -220,21 +215,19 @@ def query(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: torch.T
     verts = body_vertices.detach().to(pts.device, torch.float64).contiguous()
     verts32 = verts.float()
     B, N = pts.shape[:2]
-    n_signed, n_vertex = (N if signed else 0), (N if nearest_vertex else 0)
-    winding = torch.empty(B, n_signed, dtype=torch.int32, device=pts.device)
+    winding = torch.empty(B, N, dtype=torch.int32, device=pts.device)
     face = torch.empty(B, N, dtype=torch.int32, device=pts.device)
-    closest = torch.empty(B, n_signed, 3, dtype=torch.float64, device=pts.device)
-    vertex = torch.empty(B, n_vertex, dtype=torch.int32, device=pts.device)
+    closest = torch.empty(B, N, 3, dtype=torch.float64, device=pts.device)
+    vertex = torch.empty(B, N if nearest_vertex else 0, dtype=torch.int32, device=pts.device)
 
     def frames(slot: int, chunk: range) -> None:
         body = _body(faces, verts32[0].cpu() if device == "cpu" else verts32[0], device, slot)
         for b in chunk:
             wp.copy(body.points, wp.from_torch(verts32[b], dtype=wp.vec3))
-            if signed:
-                wp.copy(body.points64, wp.from_torch(verts[b], dtype=wp.vec3d))
+            wp.copy(body.points64, wp.from_torch(verts[b], dtype=wp.vec3d))
             body.mesh.refit()
             wp.launch(_query, dim=N, device=device, inputs=[body.mesh.id, body.points, body.points64, body.faces, wp.from_torch(pts[b], dtype=wp.vec3d),
-                                                            body.directions, int(signed), wp.from_torch(winding[b]), wp.from_torch(face[b]),
+                                                            body.directions, wp.from_torch(winding[b]), wp.from_torch(face[b]),
                                                             wp.from_torch(closest[b], dtype=wp.vec3d), wp.from_torch(vertex[b])])  # fmt: skip
 
     n_threads = min(torch.get_num_threads(), B) if device == "cpu" else 1
@@ -245,7 +238,7 @@ def query(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: torch.T
 
         with ThreadPoolExecutor(n_threads) as pool:
             list(pool.map(frames, range(n_threads), [range(k, B, n_threads) for k in range(n_threads)]))
-    return BodyQuery(winding if signed else None, face.long(), closest if signed else None, vertex.long() if nearest_vertex else None)
+    return BodyQuery(winding, face.long(), closest, vertex.long() if nearest_vertex else None)
 
 
 @lru_cache(maxsize=8)

@@ -2,11 +2,9 @@
 culling of body parts far from the garment (``culled_body_vertices``; every query takes the result
 as ``candidates=``). The exact signed distance lives in :mod:`drapebench.geometry.sdf`.
 
-Given the body's faces (``body_faces=``, a closed mesh such as the baked bodies) and no
-``candidates``, the search is exact over the whole body by the body's warp BVH
-(:mod:`drapebench.geometry.body_bvh`, refitted per frame, frames split over torch's threads).
-Otherwise CPU queries use scipy's KD-tree (one tree per frame, the frames split over torch's threads)
-and CUDA tensors chunked ``torch.cdist``. Positions are in metres, float32 or float64 (results follow the dtype of ``points``).
+CPU queries use scipy's KD-tree (one tree per frame, the frames split over torch's threads) and CUDA
+tensors chunked ``torch.cdist``; the metrics find the nearest vertex of the whole body in the signed
+distance's BVH pass instead (:func:`drapebench.geometry.sdf.body_proximity`). Positions are in metres, float32 or float64 (results follow the dtype of ``points``).
 """
 
 from __future__ import annotations
@@ -96,23 +94,15 @@ def body_vertex_tree(body_vertices: torch.Tensor, candidates: torch.Tensor | Non
 
 
 def nearest_indices(points: torch.Tensor, body_vertices: torch.Tensor, candidates: torch.Tensor | None = None,
-                    tree: cKDTree | None = None, body_faces: torch.Tensor | None = None) -> torch.Tensor:  # fmt: skip
+                    tree: cKDTree | None = None) -> torch.Tensor:  # fmt: skip
     """Index (B,N) long of the nearest body vertex per point (not differentiable).
 
     points (B,N,3), body_vertices (B,Vb,3) or (1,Vb,3); ``candidates`` (C,) restricts the search to
     those body vertices (returned indices are still global body vertex indices); ``tree`` is
-    :func:`body_vertex_tree` of the same single body frame and candidates (built here when None);
-    ``body_faces`` (F,3) of a closed body without ``candidates`` or ``tree``: the warp BVH search
-    (module docstring), the same vertex up to float32 near-ties.
+    :func:`body_vertex_tree` of the same single body frame and candidates (built here when None).
     """
     points, body_vertices = _as_batch(points, body_vertices)
     cand = _check_candidates(candidates, body_vertices.shape[1], body_vertices.device)
-    if body_faces is not None and cand is None and tree is None:
-        from drapebench.geometry import body_bvh
-
-        faces = torch.as_tensor(body_faces).long()
-        if body_bvh.is_closed(faces):
-            return body_bvh.query(points, body_vertices, faces, signed=False, nearest_vertex=True).vertex.to(points.device)
     shared = len(body_vertices) == 1 or body_vertices.stride(0) == 0  # one body frame for the batch: one search structure
     if tree is not None and not shared:
         raise ValueError("tree= is a search structure of one body frame; pass body_vertices as (1, Vb, 3)")
@@ -147,19 +137,17 @@ def nearest_body_vertex(
     body_normals: torch.Tensor,
     candidates: torch.Tensor | None = None,
     tree: cKDTree | None = None,
-    body_faces: torch.Tensor | None = None,
 ) -> NearestVertex:
     """Nearest body vertex per garment point, with the signed normal distance (GAPS/SNUG collision).
 
     points (B,N,3) m; body_vertices (B,Vb,3) (or (1,Vb,3), shared by the batch); body_normals
     (B,Vb,3) unit area-weighted vertex normals; ``candidates`` (C,) body vertex indices to search
     (see :func:`culled_body_vertices`); ``tree`` a prebuilt :func:`body_vertex_tree` of a single body
-    frame; ``body_faces`` (F,3): search the whole body by its BVH (:func:`nearest_indices`).
-    Differentiable w.r.t. ``points`` and the body through the gather (the index selection itself is
-    not). Returns :class:`NearestVertex`.
+    frame. Differentiable w.r.t. ``points`` and the body through the gather (the index selection itself
+    is not). Returns :class:`NearestVertex`.
     """
     points, body_vertices, body_normals = _as_batch(points, body_vertices, body_normals)
-    return nearest_from_indices(points, body_vertices, body_normals, nearest_indices(points, body_vertices, candidates, tree, body_faces))
+    return nearest_from_indices(points, body_vertices, body_normals, nearest_indices(points, body_vertices, candidates, tree))
 
 
 def nearest_from_indices(points: torch.Tensor, body_vertices: torch.Tensor, body_normals: torch.Tensor, idx: torch.Tensor) -> NearestVertex:

@@ -27,29 +27,6 @@ def test_nearest_body_vertex_matches_brute_force_and_differentiates(dtype):
     assert torch.equal(sub.index, cand[torch.cdist(x.double(), body[:, cand].double()).argmin(-1)])
 
 
-@pytest.mark.parametrize("scale", [0.01, 0.3])
-def test_the_body_bvh_finds_the_nearest_vertex_of_the_whole_body(body_lowres, scale):
-    """body_faces= searches the posed body's BVH: the same nearest distance as brute force over every
-    body vertex, for points near the skin (inside and out) and far from it, and broadcast (1,Vb,3)
-    bodies; differentiable as the KD-tree path."""
-    from drapebench.body import make_sequence
-
-    body = body_lowres
-    seq = make_sequence("squat", 3, seed=2, transition=0)
-    bv, bn = seq.vertices(body), seq.vertex_normals(body)
-    g = torch.Generator().manual_seed(3)
-    pick = torch.randint(0, body.n_vertices, (3, 400), generator=g)
-    x = (bv.gather(1, pick[..., None].expand(-1, -1, 3)) + scale * torch.randn(3, 400, 3, generator=g)).requires_grad_(True)
-    nn = nearest_body_vertex(x, bv, bn, body_faces=body.faces)
-    brute = torch.cdist(x.detach().double(), bv.double()).min(-1).values
-    assert torch.allclose((x.detach() - nn.point).norm(dim=-1).double(), brute, atol=1e-6)
-    assert (nn.index == torch.cdist(x.detach().double(), bv.double()).argmin(-1)).float().mean() > 0.99  # float32 near-ties aside
-    nn.distance.sum().backward()
-    assert torch.allclose(x.grad, nn.normal)
-    one = nearest_body_vertex(x.detach(), bv[:1], bn[:1], body_faces=body.faces)
-    assert torch.allclose((x.detach() - one.point).norm(dim=-1).double(), torch.cdist(x.detach().double(), bv[:1].double()).min(-1).values, atol=1e-6)
-
-
 def test_frames_split_over_threads_each_search_their_own_body(monkeypatch):
     """The KD-tree path hands frames to torch's threads: each frame is answered against its own body."""
     g = torch.Generator().manual_seed(5)

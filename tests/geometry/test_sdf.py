@@ -224,6 +224,30 @@ def test_closest_point_search_is_exact_anywhere(body_lowres, shift):
         assert (sp.distance > 0.5).all()
 
 
+@pytest.mark.parametrize("scale", [0.01, 0.3])
+def test_the_body_bvh_finds_the_nearest_vertex_of_the_whole_body(body_lowres, scale):
+    """body_proximity's nearest vertex comes from the posed body's BVH: the same nearest distance as
+    brute force over every body vertex, for points near the skin (inside and out) and far from it, and
+    broadcast (1,Vb,3) bodies; differentiable as the KD-tree path."""
+    from drapebench.body import make_sequence
+    from drapebench.geometry.sdf import body_proximity
+
+    body = body_lowres
+    seq = make_sequence("squat", 3, seed=2, transition=0)
+    bv, bn = seq.vertices(body), seq.vertex_normals(body)
+    g = torch.Generator().manual_seed(3)
+    pick = torch.randint(0, body.n_vertices, (3, 400), generator=g)
+    x = (bv.gather(1, pick[..., None].expand(-1, -1, 3)) + scale * torch.randn(3, 400, 3, generator=g)).requires_grad_(True)
+    nn = body_proximity(x, bv, bn, body.faces)[1]
+    brute = torch.cdist(x.detach().double(), bv.double()).min(-1).values
+    assert torch.allclose((x.detach() - nn.point).norm(dim=-1).double(), brute, atol=1e-6)
+    assert (nn.index == torch.cdist(x.detach().double(), bv.double()).argmin(-1)).float().mean() > 0.99  # float32 near-ties aside
+    nn.distance.sum().backward()
+    assert torch.allclose(x.grad, nn.normal)
+    one = body_proximity(x.detach(), bv[:1], bn[:1], body.faces)[1]
+    assert torch.allclose((x.detach() - one.point).norm(dim=-1).double(), torch.cdist(x.detach().double(), bv[:1].double()).min(-1).values, atol=1e-6)
+
+
 @pytest.mark.parametrize("shift", [(0.0, -2.5, 0.0), (0.0, 0.0, 0.0)])
 def test_body_proximity_finds_both_answers_in_one_pass(body_lowres, shift):
     """body_proximity's one BVH pass gives the signed distance of closest_body_point and the whole
