@@ -10,16 +10,38 @@ from __future__ import annotations
 import torch
 
 
+def corners(x: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
+    """Positions of the vertices ``index`` (K, n) of x (..., V, 3), component-major: (n, 3, ..., K) (m).
+
+    ``corners(x, faces)[j]`` holds the j-th corner of every face, its x, y, z in ``[0]``, ``[1]``, ``[2]``.
+    One index_select on a (3 x batch, V) copy of x: on the CPU several times faster than n gathers
+    ``x[..., index[:, j], :]``, and each component is contiguous over K. Differentiable w.r.t. x.
+    """
+    lead, n_vertices = x.shape[:-2], x.shape[-2]
+    rows = x.movedim(-1, 0).reshape(-1, n_vertices)
+    picked = rows.index_select(1, index.t().reshape(-1))
+    return picked.view(3, *lead, index.shape[1], index.shape[0]).movedim(-2, 0)
+
+
+def _cross_xyz(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """Cross product of component-major vectors a, b (3, ...) -> (3, ...)."""
+    return torch.stack((a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]))
+
+
+def _face_cross_xyz(x: torch.Tensor, faces: torch.Tensor) -> torch.Tensor:
+    v0, v1, v2 = corners(x, faces)
+    return _cross_xyz(v1 - v0, v2 - v0)
+
+
 def face_cross(x: torch.Tensor, faces: torch.Tensor) -> torch.Tensor:
     """Un-normalised face normals (x1 - x0) x (x2 - x0), length = 2 x face area (m^2). x (..., V, 3), faces (F, 3) -> (..., F, 3)."""
-    v0, v1, v2 = x[..., faces[:, 0], :], x[..., faces[:, 1], :], x[..., faces[:, 2], :]
-    return torch.cross(v1 - v0, v2 - v0, dim=-1)
+    return _face_cross_xyz(x, faces).movedim(0, -1)
 
 
 def face_areas(x: torch.Tensor, faces: torch.Tensor) -> torch.Tensor:
     """Triangle areas (m^2). x (..., V, 3), faces (F, 3) -> (..., F)."""
-    c = face_cross(x, faces)
-    return 0.5 * torch.sqrt((c * c).sum(-1) + torch.finfo(x.dtype).tiny)
+    c = _face_cross_xyz(x, faces)
+    return 0.5 * torch.sqrt((c * c).sum(0) + torch.finfo(x.dtype).tiny)
 
 
 def face_normals(x: torch.Tensor, faces: torch.Tensor, eps: float = 1e-12) -> torch.Tensor:
@@ -33,11 +55,10 @@ def vertex_normals(x: torch.Tensor, faces: torch.Tensor, eps: float = 1e-12) -> 
 
     Vertices without faces (or whose weighted sum vanishes) get a zero normal.
     """
-    c = face_cross(x, faces)  # 2 A_f n_f
-    idx = faces.reshape(-1)
-    contrib = c.unsqueeze(-2).expand(*c.shape[:-1], 3, 3).reshape(*c.shape[:-2], -1, 3)
-    n = torch.zeros_like(x).index_add(-2, idx, contrib)
-    return n / n.norm(dim=-1, keepdim=True).clamp_min(eps)
+    c = _face_cross_xyz(x, faces)  # 2 A_f n_f, (3, ..., F)
+    n = x.new_zeros((3, *x.shape[:-2], x.shape[-2]))
+    n = n.index_add(-1, faces.t().reshape(-1), c.repeat(*(1,) * (c.dim() - 1), 3))
+    return (n / torch.sqrt((n * n).sum(0)).clamp_min(eps)).movedim(0, -1).contiguous()
 
 
 def edge_lengths(x: torch.Tensor, edges) -> torch.Tensor:
@@ -46,8 +67,9 @@ def edge_lengths(x: torch.Tensor, edges) -> torch.Tensor:
     The gradient of a collapsed (zero-length) edge is zero rather than NaN.
     """
     e = edges.edges if hasattr(edges, "edges") else edges
-    d = x[..., e[:, 1], :] - x[..., e[:, 0], :]
-    return torch.sqrt((d * d).sum(-1) + torch.finfo(x.dtype).tiny)
+    x0, x1 = corners(x, e)
+    d = x1 - x0
+    return torch.sqrt((d * d).sum(0) + torch.finfo(x.dtype).tiny)
 
 
 def dihedral_angles(x: torch.Tensor, hinges, hinge_opposite: torch.Tensor | None = None) -> torch.Tensor:
@@ -65,15 +87,15 @@ def dihedral_angles(x: torch.Tensor, hinges, hinge_opposite: torch.Tensor | None
         hinge_edges = hinges
         if hinge_opposite is None:
             raise ValueError("dihedral_angles needs a Topology, or hinge_edges and hinge_opposite")
-    x0, x1 = x[..., hinge_edges[:, 0], :], x[..., hinge_edges[:, 1], :]
-    p0, p1 = x[..., hinge_opposite[:, 0], :], x[..., hinge_opposite[:, 1], :]
-    e = x1 - x0
-    n0 = torch.cross(e, p0 - x0, dim=-1)
-    n1 = torch.cross(p1 - x0, e, dim=-1)
+    x0, x1, p0, p1 = corners(x, torch.cat((hinge_edges, hinge_opposite), 1))
+    e, b = x1 - x0, p1 - x0
+    n0 = _cross_xyz(e, p0 - x0)
+    n1 = _cross_xyz(b, e)
     eps = torch.finfo(x.dtype).eps
-    e_hat = e / torch.sqrt((e * e).sum(-1, keepdim=True) + eps**2)
-    sin = (torch.cross(n0, n1, dim=-1) * e_hat).sum(-1)
-    cos = (n0 * n1).sum(-1)
+    # (n0 x n1) = -e (n0 . b), so (n0 x n1) . e_hat = -(n0 . b) |e|^2 / sqrt(|e|^2 + eps^2)
+    e2 = (e * e).sum(0)
+    sin = -(n0 * b).sum(0) * e2 / torch.sqrt(e2 + eps**2)
+    cos = (n0 * n1).sum(0)
     degenerate = (sin.abs() < eps**2) & (cos.abs() < eps**2)
     cos = torch.where(degenerate, torch.full_like(cos, eps), cos)
     return torch.atan2(sin, cos)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import torch
 
-from drapebench.geometry.ops import dihedral_angles, edge_lengths, face_areas
+from drapebench.geometry.ops import corners, dihedral_angles, edge_lengths, face_areas
 from drapebench.geometry.topology import Topology
 from drapebench.physics.material import Material
 
@@ -31,19 +31,31 @@ def _batch(x: torch.Tensor) -> torch.Tensor:
     return x
 
 
+def _deformation_gradient_xyz(x: torch.Tensor, topo: Topology) -> torch.Tensor:
+    """F = Ds Dm^-1 component-major: (3, 2, ..., F), entry [i, j] = F_ij of every face."""
+    v0, v1, v2 = corners(x, topo.faces)
+    d1, d2 = v1 - v0, v2 - v0
+    shape = (2,) + (1,) * (x.dim() - 2) + (topo.faces.shape[0],)
+    r0 = topo.rest_inv[:, 0, :].t().reshape(shape)
+    r1 = topo.rest_inv[:, 1, :].t().reshape(shape)
+    return d1.unsqueeze(1) * r0 + d2.unsqueeze(1) * r1
+
+
+def _green_strain_xyz(x: torch.Tensor, topo: Topology) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Entries G00, G01 (= G10), G11 of the Green strain per face, each (..., F)."""
+    F = _deformation_gradient_xyz(x, topo)
+    return 0.5 * ((F[:, 0] * F[:, 0]).sum(0) - 1.0), 0.5 * (F[:, 0] * F[:, 1]).sum(0), 0.5 * ((F[:, 1] * F[:, 1]).sum(0) - 1.0)
+
+
 def deformation_gradient(x: torch.Tensor, topo: Topology) -> torch.Tensor:
     """Per-face deformation gradient F = Ds Dm^-1, (B, F, 3, 2); Ds = [x1 - x0, x2 - x0]."""
-    f = topo.faces
-    x0 = x[..., f[:, 0], :]
-    Ds = torch.stack([x[..., f[:, 1], :] - x0, x[..., f[:, 2], :] - x0], dim=-1)
-    return Ds @ topo.rest_inv
+    return _deformation_gradient_xyz(x, topo).movedim((0, 1), (-2, -1))
 
 
 def green_strain(x: torch.Tensor, topo: Topology) -> torch.Tensor:
     """Green-Lagrange strain G = (F^T F - I) / 2 per face, (B, F, 2, 2)."""
-    F = deformation_gradient(x, topo)
-    eye = torch.eye(2, dtype=x.dtype, device=x.device)
-    return 0.5 * (F.transpose(-1, -2) @ F - eye)
+    g00, g01, g11 = _green_strain_xyz(x, topo)
+    return torch.stack((torch.stack((g00, g01), -1), torch.stack((g01, g11), -1)), -2)
 
 
 def stvk_energy(x: torch.Tensor, topo: Topology, material: Material, per_element: bool = False) -> torch.Tensor:
@@ -53,9 +65,9 @@ def stvk_energy(x: torch.Tensor, topo: Topology, material: Material, per_element
     mu and lambda per thickness (Material), so the product with thickness t gives N/m.
     """
     x = _batch(x)
-    G = green_strain(x, topo)
-    tr = G[..., 0, 0] + G[..., 1, 1]
-    psi = material.lame_mu * (G * G).sum((-1, -2)) + 0.5 * material.lame_lambda * tr * tr
+    g00, g01, g11 = _green_strain_xyz(x, topo)
+    tr = g00 + g11
+    psi = material.lame_mu * (g00 * g00 + 2.0 * g01 * g01 + g11 * g11) + 0.5 * material.lame_lambda * tr * tr
     return _total(topo.face_areas * material.thickness * psi, per_element)
 
 

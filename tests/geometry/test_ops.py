@@ -2,7 +2,7 @@ import numpy as np
 import torch
 import trimesh
 
-from drapebench.geometry import dihedral_angles, edge_lengths, face_areas, face_normals, get_topology, vertex_normals
+from drapebench.geometry import corners, dihedral_angles, edge_lengths, face_areas, face_normals, get_topology, vertex_normals
 from tests.meshes import grid_mesh
 
 
@@ -47,6 +47,15 @@ def test_batched_leading_dimensions():
     assert torch.allclose(edge_lengths(x, topo)[0, 1], 2 * topo.rest_edge_lengths)
     assert torch.allclose(edge_lengths(x, topo), edge_lengths(x, topo.edges))
     assert torch.allclose(dihedral_angles(x, topo)[1, 0], topo.rest_dihedral)  # scale-invariant
+
+
+def test_corners_equal_per_corner_gathers():
+    V, F = random_mesh(3)
+    for x in (V, V + torch.randn(2, 3, *V.shape, dtype=V.dtype)):
+        c = corners(x, F)
+        assert c.shape == (3, 3, *x.shape[:-2], F.shape[0])
+        for j in range(3):
+            assert torch.equal(c[j].movedim(0, -1), x[..., F[:, j], :])
 
 
 def test_dihedral_sign_convention():
