@@ -17,13 +17,16 @@ had at model finalisation otherwise). ``garment.pins`` (waistband / neck band) a
 follow linear blend skinning of their start positions with their nearest rest-body vertex's
 weights; ``pins=False`` leaves them free.
 
-Failures (nothing is cached): :class:`SimulationDiverged` on NaN, a vertex faster than ``max_speed``
-or an edge stretched past ``MAX_STRETCH``; :class:`GarmentLeftBody` when the garment's centroid (mean
+Failures (nothing is cached): :class:`SimulationDiverged` on NaN, a vertex faster than ``max_speed``,
+an edge stretched past ``MAX_STRETCH``, or an edge with no pinned end held past ``SNAG_STRETCH`` x its
+rest length for ``SNAG_SECONDS`` (the cloth snagged on the body: pinned edges follow the body and are
+left out); :class:`GarmentLeftBody` when the garment's centroid (mean
 vertex) leaves the body's axis-aligned bounding box grown by ``LEAVE_MARGIN`` on every side (it fell
 off) or drops into the lowest ``FEET_BAND`` of the body's height (it slid down to the feet), checked
 after every frame. After a failure the whole simulation is run again with each of
 ``settings.retry_substeps`` in turn (a smaller step); every attempt is recorded in the record's
-``stats["attempts"]`` and the cache key stays the requested settings.
+``stats["attempts"]`` and the cache key stays the requested settings. A cached drape is checked for a
+snag again when it is loaded; one that fails is simulated again.
 """
 
 from __future__ import annotations
@@ -50,6 +53,8 @@ from drapebench.reference.settings import SimSettings
 REFERENCES = Cache("reference", 1)  # bump when the simulation or the stored format changes
 MAX_START_INSIDE = 0.01  # a garment with more of its vertices inside the rest body is rejected
 MAX_STRETCH = 4.0  # an edge longer than this x its rest length counts as a blow-up
+SNAG_STRETCH = 2.5  # an edge with no pinned end held longer than this x its rest length ...
+SNAG_SECONDS = 0.5  # ... for this long (sequence time) means the cloth snagged on the body
 log = logging.getLogger("drapebench")
 LEAVE_MARGIN = 0.10  # m: a garment centroid this far outside the body's bounding box has fallen off
 FEET_BAND = 0.15  # a garment centroid in this lowest fraction of the body's height has slid down to the feet
@@ -208,6 +213,43 @@ def _left_body(x: np.ndarray, body_points: np.ndarray) -> str | None:
     return None
 
 
+def _free_edges(garment, pinned: bool) -> np.ndarray:
+    """(E,) bool: the garment's edges with no pinned end (every edge when the pins are off)."""
+    edges = garment.topology.edges.numpy()
+    pin = np.zeros(garment.n_vertices, dtype=bool)
+    if pinned:
+        pin[garment.pins.numpy()] = True
+    return ~pin[edges].any(1)
+
+
+def _snag_frames(fps: float) -> int:
+    """Frames an over-stretched free edge may last at ``fps`` before it counts as a snag."""
+    return max(1, round(SNAG_SECONDS * fps))
+
+
+def _snag_reason(peak: float, n_frames: int) -> str:
+    return (f"an edge away from the pins stayed stretched past {SNAG_STRETCH:g}x its rest length for {n_frames} frames "
+            f"(up to {peak:.1f}x; limits SNAG_STRETCH={SNAG_STRETCH:g}, SNAG_SECONDS={SNAG_SECONDS:g}): the cloth snagged "
+            f"on the body")  # fmt: skip
+
+
+def find_snag(vertices: np.ndarray, garment, pinned: bool, fps: float) -> tuple[int, str] | None:
+    """The frame at which a drape (T, V, 3) of ``garment`` (m) has held an edge with no pinned end past
+    ``SNAG_STRETCH`` x its rest length for ``SNAG_SECONDS`` at ``fps``, and why; None when it never does."""
+    edges, free = garment.topology.edges.numpy(), _free_edges(garment, pinned)
+    if not free.any():
+        return None
+    rest = garment.topology.rest_edge_lengths.double().numpy()[free]
+    x = np.asarray(vertices, dtype=np.float64)
+    ratio = (np.linalg.norm(x[:, edges[free, 1]] - x[:, edges[free, 0]], axis=-1) / rest).max(1)
+    held, need = 0, _snag_frames(fps)
+    for t, r in enumerate(ratio):
+        held = held + 1 if r > SNAG_STRETCH else 0
+        if held >= need:
+            return t, _snag_reason(float(ratio[t - need + 1 : t + 1].max()), need)
+    return None
+
+
 def _run(garment, seq, body, material: Material, settings: SimSettings, show_progress: bool):
     t_setup = time.perf_counter()
     S, T = int(settings.settle_frames), seq.n_frames
@@ -227,6 +269,8 @@ def _run(garment, seq, body, material: Material, settings: SimSettings, show_pro
     faces = garment.faces.numpy()
     edges = garment.topology.edges.numpy()
     rest_len = garment.topology.rest_edge_lengths.double().numpy()
+    free = _free_edges(garment, bool(settings.pins))
+    snag_need, held, held_peak = _snag_frames(float(seq.fps)), 0, 0.0
     scene = ClothScene(rest, faces, start.double().numpy(), verts[0], body.faces.numpy(), pins.numpy(), material,
                        settings, device)  # fmt: skip
     timings = {"setup": time.perf_counter() - t_setup, "settle": 0.0, "sequence": 0.0}
@@ -264,6 +308,10 @@ def _run(garment, seq, body, material: Material, settings: SimSettings, show_pro
             if ratio.max() > MAX_STRETCH:
                 raise SimulationDiverged(garment.name, seq.name, frame, T,
                                          f"an edge stretched to {ratio.max():.1f}x its rest length", settings)  # fmt: skip
+            free_max = float(ratio[free].max()) if free.any() else 0.0
+            held, held_peak = (held + 1, max(held_peak, free_max)) if free_max > SNAG_STRETCH else (0, 0.0)
+            if held >= snag_need:
+                raise SimulationDiverged(garment.name, seq.name, frame, T, _snag_reason(held_peak, snag_need), settings)
             left = _left_body(x, verts[k + 1])
             if left is not None:
                 raise GarmentLeftBody(garment.name, seq.name, frame, T, left, settings)
@@ -387,8 +435,11 @@ def simulate_record(
     hit = REFERENCES.load(path, _reader((seq.n_frames, garment.n_vertices, 3)), force) if cache else None
     if hit is not None:
         verts, meta = hit
-        return SimulationRecord(torch.from_numpy(verts), meta["timings_s"], cfg, True, time.perf_counter() - t0,
-                                str(path), meta["stats"])  # fmt: skip
+        snag = find_snag(verts, garment, bool(cfg.pins), float(seq.fps))
+        if snag is None:
+            return SimulationRecord(torch.from_numpy(verts), meta["timings_s"], cfg, True, time.perf_counter() - t0,
+                                    str(path), meta["stats"])  # fmt: skip
+        log.warning("the cached reference %s fails the snag check at frame %d (%s); simulating it again", path.name, *snag)
     if cache and not force:
         _raise_recorded_failure(path)
     try:
@@ -440,7 +491,8 @@ def simulate(
     Raises:
         ValueError: bad settings, or a garment that starts inside the body.
         SimulationDiverged: NaN, a vertex faster than ``max_speed``, an edge torn past 4x its rest
-            length, or (:class:`GarmentLeftBody`) the garment left the body, at every substep count
+            length, an edge away from the pins held past 2.5x for 0.5 s (a snag), or
+            (:class:`GarmentLeftBody`) the garment left the body, at every substep count
             tried (``retry_substeps``); names the garment, frame and what to change.
     """
     rec = simulate_record(garment, seq, body, material, solver, cache=cache, progress=progress, substeps=substeps,

@@ -1,5 +1,5 @@
-"""The reference's failure checks (NaN, speed, stretch, garment leaving the body) and its retry ladder, fed bad
-frames by a fake Newton scene inside the real simulation loop (fast)."""
+"""The reference's failure checks (NaN, speed, stretch, a snag, garment leaving the body) and its retry ladder, fed
+bad frames by a fake Newton scene inside the real simulation loop (fast)."""
 
 import pickle
 
@@ -12,7 +12,8 @@ from drapebench.body import make_sequence
 from drapebench.garments import make_garment
 from drapebench.physics import Material
 from drapebench.reference import GarmentLeftBody, SimulationDiverged, simulate_record
-from drapebench.reference.simulator import FEET_BAND, LEAVE_MARGIN, _left_body
+import drapebench.reference.simulator as simulator
+from drapebench.reference.simulator import FEET_BAND, LEAVE_MARGIN, SNAG_STRETCH, _left_body, find_snag
 
 N_FRAMES, TRANSITION, SETTLE = 4, 2, 2
 
@@ -65,6 +66,25 @@ def fast_at_3(x, n):
 def torn_at_3(x, n):
     x[0, 2] += 0.15 if n >= 3 else 0.0  # one vertex 15 cm off: its edges (about 3 cm) stretch past 4x, at 4.5 m/s
     return x
+
+
+def pulled(g, vertex: int, ratio: float) -> np.ndarray:
+    """The offset (3,) m along +z that stretches ``vertex``'s longest-stretched edge to ``ratio`` x its rest length."""
+    x, topo = g.vertices.double().numpy(), g.topology
+    e, rest = topo.edges.numpy(), topo.rest_edge_lengths.double().numpy()
+    mine = (e == vertex).any(1)
+    other = np.where(e[mine, 0] == vertex, e[mine, 1], e[mine, 0])
+    lo, hi = 0.0, 1.0
+    for _ in range(60):
+        d = 0.5 * (lo + hi)
+        r = np.linalg.norm(x[vertex] + [0.0, 0.0, d] - x[other], axis=1) / rest[mine]
+        lo, hi = (d, hi) if r.max() < ratio else (lo, d)
+    return np.array([0.0, 0.0, lo], dtype=np.float32)
+
+
+def free_vertex(g) -> int:
+    """A vertex far from the pins (the hem of the skirt)."""
+    return int(torch.argmin(g.vertices[:, 2]))
 
 
 def falls(x, n):
@@ -126,3 +146,56 @@ def test_the_leave_body_rule(scene, body_lowres):
     assert _left_body(x + np.array([width / 2 + LEAVE_MARGIN - 0.05, 0.0, 0.0]), body) is None  # within the margin
     feet = x - np.array([0.0, 0.0, x[:, 2].mean() - body[:, 2].min() - 0.5 * FEET_BAND * np.ptp(body[:, 2])])
     assert "slid down to the feet" in _left_body(feet, body)
+
+
+def test_a_held_stretch_away_from_the_pins_is_a_snag(scene, body_lowres, monkeypatch, tmp_path):
+    monkeypatch.setenv("DRAPEBENCH_DATA", str(tmp_path))
+    monkeypatch.setattr(simulator, "SNAG_SECONDS", 0.1)  # 3 frames at 30 fps (the run has 2 + 4)
+    g, seq = scene
+    v, offset = free_vertex(g), pulled(g, free_vertex(g), 3.0)  # past SNAG_STRETCH, below MAX_STRETCH
+
+    def snagged(x, n):
+        x[v] += offset if n >= 2 else 0.0
+        return x
+
+    steps = fake_scene(monkeypatch, snagged)
+    with pytest.raises(SimulationDiverged, match=r"stayed stretched past 2.5x its rest length for 3 frames \(up to 3.0x") as err:
+        simulate_record(g, seq, body_lowres, Material(), settle_frames=SETTLE, retry_substeps=[], progress=False)
+    assert steps == [10] and err.value.frame == 3 - SETTLE  # stretched from timeline frame 1 on, the third such frame is 3
+    assert not list((tmp_path / "cache" / "reference").glob("*.npz"))
+
+
+def test_find_snag_counts_free_edges_held_long_enough(scene):
+    g, _ = scene
+    x = g.vertices.numpy()[None].repeat(20, 0)
+    v = free_vertex(g)
+    x[5:12, v] += pulled(g, v, 3.0)  # 7 frames past 2.5x
+    assert find_snag(x, g, pinned=True, fps=30.0) is None  # 0.5 s at 30 fps is 15 frames
+    frame, reason = find_snag(x, g, pinned=True, fps=10.0)  # 5 frames
+    assert frame == 9 and "snagged" in reason
+    x[5:12, v] -= pulled(g, v, 3.0) - pulled(g, v, 0.99 * SNAG_STRETCH)
+    assert find_snag(x, g, pinned=True, fps=10.0) is None  # below the limit
+    pin = int(g.pins[0])
+    x[:, pin] += pulled(g, pin, 3.0)  # a pinned vertex follows the body: its edges do not count ...
+    assert find_snag(x, g, pinned=True, fps=30.0) is None
+    assert find_snag(x, g, pinned=False, fps=30.0) is not None  # ... unless the pins are off
+
+
+def test_a_cached_drape_that_snags_is_simulated_again(scene, body_lowres, monkeypatch, tmp_path, caplog):
+    monkeypatch.setenv("DRAPEBENCH_DATA", str(tmp_path))
+    monkeypatch.setattr(simulator, "SNAG_SECONDS", 0.1)
+    g, seq = scene
+    v, offset = free_vertex(g), pulled(g, free_vertex(g), 3.0)
+
+    def snagged(x, n):
+        x[v] += offset if n >= 2 else 0.0
+        return x
+
+    steps = fake_scene(monkeypatch, snagged)
+    monkeypatch.setattr(simulator, "SNAG_STRETCH", 10.0)  # an older check that let it through: cached
+    rec = simulate_record(g, seq, body_lowres, Material(), settle_frames=SETTLE, retry_substeps=[], progress=False)
+    assert not rec.from_cache and steps == [10]
+    monkeypatch.setattr(simulator, "SNAG_STRETCH", SNAG_STRETCH)
+    with pytest.raises(SimulationDiverged, match="snagged"):
+        simulate_record(g, seq, body_lowres, Material(), settle_frames=SETTLE, retry_substeps=[], progress=False)
+    assert steps == [10, 10] and "fails the snag check" in caplog.text
