@@ -31,30 +31,29 @@ def _batch(x: torch.Tensor) -> torch.Tensor:
     return x
 
 
-def _deformation_gradient_xyz(x: torch.Tensor, topo: Topology) -> torch.Tensor:
-    """F = Ds Dm^-1 component-major: (3, 2, ..., F), entry [i, j] = F_ij of every face."""
-    v0, v1, v2 = corners(x, topo.faces)
-    d1, d2 = v1 - v0, v2 - v0
-    shape = (2,) + (1,) * (x.dim() - 2) + (topo.faces.shape[0],)
-    r0 = topo.rest_inv[:, 0, :].t().reshape(shape)
-    r1 = topo.rest_inv[:, 1, :].t().reshape(shape)
-    return d1.unsqueeze(1) * r0 + d2.unsqueeze(1) * r1
-
-
-def _green_strain_xyz(x: torch.Tensor, topo: Topology) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """Entries G00, G01 (= G10), G11 of the Green strain per face, each (..., F)."""
-    F = _deformation_gradient_xyz(x, topo)
-    return 0.5 * ((F[:, 0] * F[:, 0]).sum(0) - 1.0), 0.5 * (F[:, 0] * F[:, 1]).sum(0), 0.5 * ((F[:, 1] * F[:, 1]).sum(0) - 1.0)
-
-
 def deformation_gradient(x: torch.Tensor, topo: Topology) -> torch.Tensor:
     """Per-face deformation gradient F = Ds Dm^-1, (B, F, 3, 2); Ds = [x1 - x0, x2 - x0]."""
-    return _deformation_gradient_xyz(x, topo).movedim((0, 1), (-2, -1))
+    v0, v1, v2 = corners(x, topo.faces)
+    ds = torch.stack((v1 - v0, v2 - v0), -1).movedim(0, -2)  # (..., F, 3, 2)
+    return ds @ topo.rest_inv
+
+
+def _green_strain_entries(x: torch.Tensor, topo: Topology) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """G00, G01 (= G10), G11 of the Green strain per face, each (..., F): F^T F = R^T (Ds^T Ds) R with
+    R = Dm^-1, from the three dot products of the face's edge vectors."""
+    v0, v1, v2 = corners(x, topo.faces)
+    d1, d2 = v1 - v0, v2 - v0
+    a, b, c = (d1 * d1).sum(0), (d1 * d2).sum(0), (d2 * d2).sum(0)
+    r00, r01, r10, r11 = topo.rest_inv[:, 0, 0], topo.rest_inv[:, 0, 1], topo.rest_inv[:, 1, 0], topo.rest_inv[:, 1, 1]
+    g00 = 0.5 * (r00 * r00 * a + 2.0 * r00 * r10 * b + r10 * r10 * c - 1.0)
+    g01 = 0.5 * (r00 * r01 * a + (r00 * r11 + r10 * r01) * b + r10 * r11 * c)
+    g11 = 0.5 * (r01 * r01 * a + 2.0 * r01 * r11 * b + r11 * r11 * c - 1.0)
+    return g00, g01, g11
 
 
 def green_strain(x: torch.Tensor, topo: Topology) -> torch.Tensor:
     """Green-Lagrange strain G = (F^T F - I) / 2 per face, (B, F, 2, 2)."""
-    g00, g01, g11 = _green_strain_xyz(x, topo)
+    g00, g01, g11 = _green_strain_entries(x, topo)
     return torch.stack((torch.stack((g00, g01), -1), torch.stack((g01, g11), -1)), -2)
 
 
@@ -65,7 +64,7 @@ def stvk_energy(x: torch.Tensor, topo: Topology, material: Material, per_element
     mu and lambda per thickness (Material), so the product with thickness t gives N/m.
     """
     x = _batch(x)
-    g00, g01, g11 = _green_strain_xyz(x, topo)
+    g00, g01, g11 = _green_strain_entries(x, topo)
     tr = g00 + g11
     psi = material.lame_mu * (g00 * g00 + 2.0 * g01 * g01 + g11 * g11) + 0.5 * material.lame_lambda * tr * tr
     return _total(topo.face_areas * material.thickness * psi, per_element)
