@@ -190,12 +190,13 @@ MAX_MARKDOWN_COLUMNS = 12  # a wider grouped table is written as one table per g
 
 def _markdown(t: pd.DataFrame) -> str:
     """``t`` as markdown: its (group, metric) columns flattened to "group metric", or, past
-    ``MAX_MARKDOWN_COLUMNS``, one table per group under a "**group**" line."""
+    ``MAX_MARKDOWN_COLUMNS``, one table per group under a "**group**" line, without the rows that
+    were not run in that group (every cell "–")."""
     if not isinstance(t.columns, pd.MultiIndex):
         return t.rename(columns=metric_label).to_markdown()
     groups = list(dict.fromkeys(t.columns.get_level_values(0)))
     if len(t.columns) > MAX_MARKDOWN_COLUMNS and len(groups) > 1:
-        return "\n\n".join(f"**{g}**\n\n{t[g].to_markdown()}" for g in groups)
+        return "\n\n".join(f"**{g}**\n\n{t[g][(t[g] != '–').any(axis=1)].to_markdown()}" for g in groups)
     flat = t.copy()
     flat.columns = [f"{g} {m}" for g, m in t.columns]
     return flat.to_markdown()
