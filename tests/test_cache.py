@@ -159,8 +159,11 @@ def _reference(monkeypatch, body):
         return x.astype(np.float32), {"sequence": 1.0}, {"max_speed": 0.1}
 
     monkeypatch.setattr(sim, "_run", fake_run)
-    g = SimpleNamespace(name="patch", vertices=torch.rand(5, 3), faces=torch.tensor([[0, 1, 2], [2, 3, 4]]),
-                        pins=torch.zeros(0, dtype=torch.long), betas=torch.zeros(10), n_vertices=5)  # fmt: skip
+    from drapebench.geometry import get_topology
+
+    v, f = torch.rand(5, 3), torch.tensor([[0, 1, 2], [2, 3, 4]])
+    g = SimpleNamespace(name="patch", vertices=v, faces=f, pins=torch.zeros(0, dtype=torch.long), betas=torch.zeros(10),
+                        n_vertices=5, topology=get_topology(v.numpy(), f.numpy(), cache=False))  # fmt: skip
     seq = make_sequence("walk", 3, transition=1, seed=3)
     return "reference", calls, lambda: sim.simulate_record(g, seq, body, Material(), progress=False).vertices
 
