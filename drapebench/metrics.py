@@ -11,7 +11,8 @@ posed body of the sequence:
 - ``edge_mm``: mean absolute edge-length change (mm); ``smoothness``: mean |cotangent Laplacian| of
   the positions (m);
 - ``penetration_mm``: mean depth of the penetrating vertices (mm, 0 when none): their exact distance
-  to the closest body surface point (:func:`drapebench.geometry.sdf.signed_distance`);
+  to the closest point of the body's outer surface (:func:`drapebench.geometry.sdf.signed_distance`
+  with ``body.outer_faces``: faces buried inside another body part are not searched);
 - ``jitter``: mean |x[t+1] - 2 x[t] + x[t-1]| (mm; NaN at the first and last frame);
 - ``vertex_error_mm``: mean distance to the reference drape (mm), when one is given;
 - ``max_strain``: the largest relative edge-length change of the frame (%); ``max_penetration_mm``: the
@@ -27,8 +28,8 @@ are the population std over frames of those metrics. The sequence's leading tran
 pose -> motion) are left out by default. Frames are evaluated in chunks (``chunk_frames``), the body
 posed per chunk, so memory stays bounded on long sequences. The signed distance is the default path of
 :mod:`drapebench.geometry.sdf` (``exact=True``: its libigl path; the tolerance between them is stated
-there); the nearest body vertex (``eps_c_nn``, the collision energy) is searched over the whole body
-in the same pass (:func:`drapebench.geometry.sdf.body_proximity`).
+there); the nearest body vertex (``eps_c_nn``, the collision energy) is searched over the corners of
+the body's outer faces in the same pass (:func:`drapebench.geometry.sdf.body_proximity`).
 """
 
 from __future__ import annotations
@@ -93,14 +94,14 @@ def evaluate(
     x = _check_positions(prediction, seq.n_frames, garment.n_vertices, "prediction").to(topo.device, topo.dtype)
     ref = None if reference is None else _check_positions(reference, seq.n_frames, garment.n_vertices, "reference")
     first = seq.n_transition if skip_transition and seq.n_transition < seq.n_frames else 0
-    faces = body.faces.to(x.device)
+    faces, outer = body.faces.to(x.device), body.outer_faces.to(x.device)
     jitter = _jitter(x, chunk_frames)[first:]
     chunks, depth_sum, n_inside = [], [], []
     with torch.no_grad():
         for start in range(first, seq.n_frames, chunk_frames):
             stop = min(start + chunk_frames, seq.n_frames)
             body_v, body_n = (t.to(x.device, x.dtype) for t in seq.posed_frames(body, start, stop))
-            cols, nn, depth, n_in = _frame_metrics(x[start:stop], topo, body_v, body_n, faces, exact)
+            cols, nn, depth, n_in = _frame_metrics(x[start:stop], topo, body_v, body_n, faces, outer, exact)
             cols["jitter"] = jitter[start - first : stop - first]
             if ref is not None:
                 cols["vertex_error_mm"] = (x[start:stop] - ref[start:stop].to(x.device, x.dtype)).norm(dim=-1).mean(-1) * 1e3
@@ -138,15 +139,15 @@ def _jitter(x: torch.Tensor, chunk_frames: int) -> torch.Tensor:
     return acc
 
 
-def _frame_metrics(xe, topo, body_v, body_n, faces, exact: bool):
+def _frame_metrics(xe, topo, body_v, body_n, faces, outer, exact: bool):
     """Per-frame metric columns (dict of (B,) tensors) of positions xe (B,V,3) against the posed body
-    (B,Vb,3), the nearest-vertex query, and per frame the summed depth (m) and count of the
-    penetrating vertices."""
+    (B,Vb,3) with its outer faces (F,) bool, the nearest-vertex query, and per frame the summed depth
+    (m) and count of the penetrating vertices."""
     lengths = edge_lengths(xe, topo.edges)
     d_len = (lengths - topo.rest_edge_lengths).abs()
     strain = d_len / topo.rest_edge_lengths
     rel_a = (face_areas(xe, topo.faces) - topo.face_areas).abs() / topo.face_areas
-    surface, nn = body_proximity(xe, body_v, body_n, faces, exact=exact)
+    surface, nn = body_proximity(xe, body_v, body_n, faces, exact=exact, outer_faces=outer)
     sd = surface.distance
     inside = sd < 0
     n_in = inside.sum(-1)

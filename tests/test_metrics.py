@@ -39,6 +39,22 @@ def test_eps_c_is_exact_for_points_inside_a_sphere(sphere_scene):
     assert np.allclose(frames["penetration_mm"], [200, 200, 200], atol=2.0)  # mesh vs true sphere
 
 
+def test_depth_is_to_the_outer_surface_past_a_buried_part(sphere_scene):
+    """The sphere body with a second closed part buried inside it (radius 0.15): vertices at radius 0.3
+    are 0.15 m from the buried part and 0.2 m deep below the outer surface, which is what they report."""
+    _, garment, seq = sphere_scene
+    outer, buried = trimesh.creation.icosphere(3, radius=0.5), trimesh.creation.icosphere(2, radius=0.15)
+    V = np.concatenate([outer.vertices, buried.vertices])
+    F = np.concatenate([outer.faces, buried.faces + len(outer.vertices)])
+    body = BodyModel(V, np.zeros((len(V), 3, 1)), np.full((1, len(V)), 1.0 / len(V)), np.ones((len(V), 1)), [-1], F, name="two parts")
+    assert not body.outer_faces[len(outer.faces) :].any() and body.outer_faces[: len(outer.faces)].all()
+    pred = garment.vertices[None].repeat(seq.n_frames, 1, 1) * (0.3 / 0.8)
+    for exact in (False, True):
+        summary, frames = evaluate(garment, seq, body, pred, energies=False, exact=exact)
+        assert np.allclose(frames["eps_c"], 100.0)
+        assert np.allclose(frames["penetration_mm"], 200, atol=2.0) and 198 < summary["max_penetration_mm"] < 201
+
+
 def test_uniform_stretch_and_reference_error(sphere_scene):
     body, garment, seq = sphere_scene
     pred = garment.vertices[None].repeat(seq.n_frames, 1, 1) * 1.1

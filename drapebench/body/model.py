@@ -112,6 +112,16 @@ class BodyModel(torch.nn.Module):
     def device(self) -> torch.device:
         return self.v_template.device
 
+    @property
+    def outer_faces(self) -> torch.Tensor:
+        """(F,) bool: the faces on the body's outer surface, not buried inside another part, in the
+        mean shape's rest pose (:mod:`drapebench.geometry.outer_surface`; cached by content hash)."""
+        if getattr(self, "_outer_faces", None) is None or self._outer_faces.device != self.faces.device:
+            from drapebench.geometry.outer_surface import outer_faces
+
+            self._outer_faces = outer_faces(self.v_template, self.faces)
+        return self._outer_faces
+
     def joint_index(self, name: str) -> int:
         """Index of a joint by name; raises with the valid names on a miss."""
         try:

@@ -6,9 +6,14 @@ The body mesh is closed and consistently oriented, so its winding number at a po
 is an integer: the sum over the triangles a ray from the point crosses of sign(dir . n) (+1 leaving a
 part, -1 entering one; parts that overlap add up, as in the exact generalized winding number). The
 ray leaves along the closest face's outward normal; one whose crossing lies within a relative 1e-5
-of a triangle edge, grazes a triangle or starts on the surface is recast along the next of three
-fixed directions. Closest faces come from warp's
+of a triangle edge, grazes a triangle, starts on the surface or runs parallel to a coordinate plane
+(warp's BVH slab test divides 0 by 0 for a box face the ray runs in, and drops that box) is recast
+along the next of three fixed directions. Closest faces come from warp's
 BVH in float32, the closest point on that face is computed in float64.
+
+With the body's outer faces given (:mod:`drapebench.geometry.outer_surface`), the closest face and
+the nearest vertex are those of the outer surface: a point whose closest face or nearest vertex is
+buried is searched again on a second mesh of the outer faces over the same points.
 
 The nearest body vertex is exact over the whole body: the nearest corner of the closest face is at a
 distance r, and every vertex within r belongs to a face whose bounding box meets the cube of half-size
@@ -37,6 +42,8 @@ def _crossings(bvh: wp.uint64, points: wp.array(dtype=wp.vec3), faces: wp.array(
     """Signed crossings of the ray p + t d (t >= 0) with the triangles, and 1 when one is ambiguous."""
     w = int(0)
     ambiguous = int(0)
+    if wp.min(wp.min(wp.abs(d[0]), wp.abs(d[1])), wp.abs(d[2])) < 1e-6:  # the BVH's slab test can drop boxes it runs along
+        return w, 1
     query = wp.bvh_query_ray(bvh, p, d)
     f = int(0)
     while wp.bvh_query_next(query, f):
@@ -141,6 +148,9 @@ def _query(
     face: wp.array(dtype=wp.int32),
     closest: wp.array(dtype=wp.vec3d),
     vertex: wp.array(dtype=wp.int32),
+    outer_face: wp.array(dtype=wp.int32),
+    outer_vertex: wp.array(dtype=wp.int32),
+    redo: wp.array(dtype=wp.int32),
 ):
     i = wp.tid()
     q = queries[i]
@@ -150,6 +160,13 @@ def _query(
     face[i] = f
     if vertex.shape[0] > 0:
         vertex[i] = _nearest_vertex(mesh, points, faces, p, f)
+    if outer_face.shape[0] > 0:  # a buried closest face or nearest vertex: searched again on the outer surface
+        redo[i] = 0
+        if outer_face[f] == 0:
+            redo[i] = 1
+        if vertex.shape[0] > 0:
+            if outer_vertex[vertex[i]] == 0:
+                redo[i] = 1
     closest[i] = _closest_on_triangle(q, points64[faces[3 * f]], points64[faces[3 * f + 1]], points64[faces[3 * f + 2]])
     a = points[faces[3 * f]]  # first ray: along the closest face's outward normal, out of the body nearby
     w, ambiguous = _crossings(wp.mesh_get_bvh(mesh), points, faces, p, wp.normalize(wp.cross(points[faces[3 * f + 1]] - a, points[faces[3 * f + 2]] - a)))
@@ -160,11 +177,36 @@ def _query(
     winding[i] = w
 
 
+@wp.kernel
+def _query_outer(
+    mesh: wp.uint64,
+    points: wp.array(dtype=wp.vec3),
+    points64: wp.array(dtype=wp.vec3d),
+    faces: wp.array(dtype=wp.int32),
+    face_ids: wp.array(dtype=wp.int32),
+    queries: wp.array(dtype=wp.vec3d),
+    which: wp.array(dtype=wp.int64),
+    face: wp.array(dtype=wp.int32),
+    closest: wp.array(dtype=wp.vec3d),
+    vertex: wp.array(dtype=wp.int32),
+):
+    """Closest face, closest point and nearest vertex of the points ``which`` on the outer-surface mesh
+    (faces: its local faces, face_ids: their indices in the whole body)."""
+    i = int(which[wp.tid()])
+    q = queries[i]
+    p = wp.vec3(wp.float32(q[0]), wp.float32(q[1]), wp.float32(q[2]))
+    f = wp.mesh_query_point_no_sign(mesh, p, 1.0e6).face
+    face[i] = face_ids[f]
+    if vertex.shape[0] > 0:
+        vertex[i] = _nearest_vertex(mesh, points, faces, p, f)
+    closest[i] = _closest_on_triangle(q, points64[faces[3 * f]], points64[faces[3 * f + 1]], points64[faces[3 * f + 2]])
+
+
 class _Body:
     """A warp mesh of one body topology on one device (BVH built on the first frame it is given,
     refitted to every later frame)."""
 
-    def __init__(self, faces: np.ndarray, vertices: torch.Tensor, device: str):
+    def __init__(self, faces: np.ndarray, vertices: torch.Tensor, device: str, outer: np.ndarray | None):
         self.device = device
         self.points = wp.array(vertices.numpy() if device == "cpu" else vertices, dtype=wp.vec3, device=device)
         self.points64 = wp.zeros(len(vertices), dtype=wp.vec3d, device=device)
@@ -172,19 +214,32 @@ class _Body:
         self.mesh = wp.Mesh(points=self.points, indices=self.faces)
         d = np.asarray(_DIRECTIONS, np.float32)
         self.directions = wp.array(d / np.linalg.norm(d, axis=1, keepdims=True), dtype=wp.vec3, device=device)
+        self.outer_mesh = None
+        if outer is not None:  # the outer faces as a second mesh over the same points, refitted when a frame needs it
+            ids = np.flatnonzero(outer)
+            vertex_flag = np.zeros(len(vertices), np.int32)
+            vertex_flag[faces[ids].reshape(-1)] = 1
+            self.outer_face = wp.array(outer.astype(np.int32), dtype=wp.int32, device=device)
+            self.outer_vertex = wp.array(vertex_flag, dtype=wp.int32, device=device)
+            self.outer_ids = wp.array(ids.astype(np.int32), dtype=wp.int32, device=device)
+            self.outer_faces = wp.array(faces[ids].reshape(-1).astype(np.int32), dtype=wp.int32, device=device)
+            self.outer_mesh = wp.Mesh(points=self.points, indices=self.outer_faces)
+        else:
+            self.outer_face = self.outer_vertex = wp.zeros(0, dtype=wp.int32, device=device)
 
 
 _BODIES: dict = {}
 
 
-def _body(faces: np.ndarray, vertices: torch.Tensor, device: str, slot: int = 0) -> _Body:
-    """The cached warp mesh of this topology (faces (F,3) int64) on this device, built on ``vertices``;
-    ``slot`` k > 0 is another copy, for the k-th thread querying frames at the same time."""
-    key = (faces.tobytes(), vertices.shape[0], device, slot)
+def _body(faces: np.ndarray, vertices: torch.Tensor, device: str, outer: np.ndarray | None, slot: int = 0) -> _Body:
+    """The cached warp mesh of this topology (faces (F,3) int64, outer (F,) bool or None) on this
+    device, built on ``vertices``; ``slot`` k > 0 is another copy, for the k-th thread querying frames
+    at the same time."""
+    key = (faces.tobytes(), None if outer is None else outer.tobytes(), vertices.shape[0], device, slot)
     if key not in _BODIES:
         if len(_BODIES) >= 8:
             _BODIES.pop(next(iter(_BODIES)))
-        _BODIES[key] = _Body(faces, vertices, device)
+        _BODIES[key] = _Body(faces, vertices, device, outer)
     return _BODIES[key]
 
 
@@ -199,17 +254,26 @@ class BodyQuery(NamedTuple):
     vertex: torch.Tensor | None
 
 
-def query(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: torch.Tensor, nearest_vertex: bool = False) -> BodyQuery:
+def query(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: torch.Tensor, nearest_vertex: bool = False,
+          outer_faces: torch.Tensor | None = None) -> BodyQuery:  # fmt: skip
     """Winding number, closest face and closest point of points against the posed body, frame by
     frame, and their nearest body vertex (``nearest_vertex``): a :class:`BodyQuery`.
 
     points (B,N,3) m; body_vertices (B,Vb,3); body_faces (F,3) long, a closed consistently oriented
-    mesh (:func:`is_closed`). The closest face is searched in float32 (of two faces within about
-    1e-7 m of the same distance either may come back); the closest point on it is computed in
-    float64. On the CPU the frames are split over ``torch.get_num_threads()`` threads (warp's CPU
-    kernels release the GIL), each with its own mesh.
+    mesh (:func:`is_closed`). ``outer_faces`` (F,) bool (:mod:`drapebench.geometry.outer_surface`):
+    the closest face and the nearest vertex are searched among the outer faces and their corners
+    only (the winding number stays that of the whole mesh); a point whose closest face or nearest
+    vertex over the whole mesh is buried is searched again on the outer faces. The closest face is
+    searched in float32 (of two faces within about 1e-7 m of the same distance either may come back);
+    the closest point on it is computed in float64. On the CPU the frames are split over
+    ``torch.get_num_threads()`` threads (warp's CPU kernels release the GIL), each with its own mesh.
     """
     faces = body_faces.detach().cpu().numpy().astype(np.int64)
+    outer = None if outer_faces is None else torch.as_tensor(outer_faces).detach().cpu().numpy().astype(bool)
+    if outer is not None and outer.shape != (len(faces),):
+        raise ValueError(f"outer_faces must be one flag per body face ({len(faces)},), got {outer.shape}")
+    if outer is not None and outer.all():
+        outer = None
     device = "cpu" if points.device.type == "cpu" else f"cuda:{points.device.index or 0}"
     pts = points.detach().to(torch.float64).contiguous()
     verts = body_vertices.detach().to(pts.device, torch.float64).contiguous()
@@ -219,16 +283,27 @@ def query(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: torch.T
     face = torch.empty(B, N, dtype=torch.int32, device=pts.device)
     closest = torch.empty(B, N, 3, dtype=torch.float64, device=pts.device)
     vertex = torch.empty(B, N if nearest_vertex else 0, dtype=torch.int32, device=pts.device)
+    redo = torch.zeros(B, N if outer is not None else 0, dtype=torch.int32, device=pts.device)
 
     def frames(slot: int, chunk: range) -> None:
-        body = _body(faces, verts32[0].cpu() if device == "cpu" else verts32[0], device, slot)
+        body = _body(faces, verts32[0].cpu() if device == "cpu" else verts32[0], device, outer, slot)
         for b in chunk:
             wp.copy(body.points, wp.from_torch(verts32[b], dtype=wp.vec3))
             wp.copy(body.points64, wp.from_torch(verts[b], dtype=wp.vec3d))
             body.mesh.refit()
-            wp.launch(_query, dim=N, device=device, inputs=[body.mesh.id, body.points, body.points64, body.faces, wp.from_torch(pts[b], dtype=wp.vec3d),
-                                                            body.directions, wp.from_torch(winding[b]), wp.from_torch(face[b]),
-                                                            wp.from_torch(closest[b], dtype=wp.vec3d), wp.from_torch(vertex[b])])  # fmt: skip
+            q, cp, fb, vb = wp.from_torch(pts[b], dtype=wp.vec3d), wp.from_torch(closest[b], dtype=wp.vec3d), wp.from_torch(face[b]), wp.from_torch(vertex[b])
+            wp.launch(_query, dim=N, device=device, inputs=[body.mesh.id, body.points, body.points64, body.faces, q, body.directions,
+                                                            wp.from_torch(winding[b]), fb, cp, vb, body.outer_face, body.outer_vertex,
+                                                            wp.from_torch(redo[b])])  # fmt: skip
+            if body.outer_mesh is None:
+                continue
+            if device != "cpu":
+                wp.synchronize_device(device)
+            which = torch.nonzero(redo[b]).squeeze(1)
+            if len(which):
+                body.outer_mesh.refit()
+                wp.launch(_query_outer, dim=len(which), device=device, inputs=[body.outer_mesh.id, body.points, body.points64, body.outer_faces,
+                                                                               body.outer_ids, q, wp.from_torch(which), fb, cp, vb])  # fmt: skip
 
     n_threads = min(torch.get_num_threads(), B) if device == "cpu" else 1
     if n_threads <= 1:

@@ -3,7 +3,12 @@ point of the body triangle mesh), sign from the body's winding number (inside an
 as inside, also where the posed body intersects itself).
 
 Rule: a point is inside when the winding number of the whole body mesh at it exceeds 0.5. Overlapping
-parts add up, so a point inside the thigh but closest to the belly reads as inside.
+parts add up, so a point inside the thigh but closest to the belly reads as inside. With the body's
+outer faces given (``outer_faces=``, :mod:`drapebench.geometry.outer_surface`) the magnitude is the
+distance to the closest point of the outer surface: faces buried inside another part (the back of an
+eye, skin folded against skin between the toes) are not searched, so a point deep in the head reads
+its depth to the skin, not to the eye behind it. For a point outside the body the two agree (the
+closest point of the whole mesh then lies on the outer surface).
 
 Two paths give the same result up to a stated tolerance:
 
@@ -180,15 +185,17 @@ def inside_body(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: t
     return torch.from_numpy(w > 0.5).to(points.device)
 
 
-def _near_faces(points: torch.Tensor, body: torch.Tensor, faces: torch.Tensor) -> torch.Tensor:
-    """Indices of the faces that can hold the closest body point of any of points (n,3): r is the
-    largest distance from a point to its nearest body vertex (an upper bound of its distance to the
-    surface); a face whose bounding box stays farther than r from the points' bounding box cannot."""
-    r = float(cKDTree(body.cpu().numpy()).query(points.cpu().numpy(), workers=1)[0].max())
+def _near_faces(points: torch.Tensor, body: torch.Tensor, faces: torch.Tensor, searched: torch.Tensor) -> torch.Tensor:
+    """Indices of the faces among ``searched`` (S,) that can hold the closest point of any of points
+    (n,3) on those faces: r is the largest distance from a point to its nearest corner of a searched
+    face (an upper bound of its distance to them); a face whose bounding box stays farther than r
+    from the points' bounding box cannot."""
+    corners = body[torch.unique(faces[searched])]
+    r = float(cKDTree(corners.cpu().numpy()).query(points.cpu().numpy(), workers=1)[0].max())
     lo, hi = points.min(0).values - r, points.max(0).values + r
-    tri = body[faces]  # (F,3,3)
+    tri = body[faces[searched]]  # (S,3,3)
     keep = ((tri.min(1).values <= hi) & (tri.max(1).values >= lo)).all(-1)
-    return torch.nonzero(keep).squeeze(1)
+    return searched[keep]
 
 
 def _checked_faces(body_faces: torch.Tensor, body_vertices: torch.Tensor) -> torch.Tensor:
@@ -199,36 +206,57 @@ def _checked_faces(body_faces: torch.Tensor, body_vertices: torch.Tensor) -> tor
     return faces
 
 
-def closest_body_point(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: torch.Tensor, exact: bool = False) -> SurfacePoint:
+def _searched_faces(outer_faces: torch.Tensor | None, faces: torch.Tensor) -> torch.Tensor:
+    """(S,) long indices of the faces the closest point is searched on: the outer ones (``outer_faces``
+    (F,) bool) or all; a ValueError when the mask does not fit the faces or marks none."""
+    if outer_faces is None:
+        return torch.arange(len(faces), device=faces.device)
+    outer = torch.as_tensor(outer_faces, device=faces.device)
+    if outer.shape != (len(faces),) or outer.dtype != torch.bool or not outer.any():
+        raise ValueError(f"outer_faces must be a bool mask with one flag per body face ({len(faces)},) and at least one "
+                         f"face set, got {tuple(outer.shape)} {outer.dtype} (build it with "
+                         "drapebench.geometry.outer_surface.outer_faces, or leave it None to search every face)")  # fmt: skip
+    return torch.nonzero(outer).squeeze(1)
+
+
+def closest_body_point(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: torch.Tensor, exact: bool = False,
+                       outer_faces: torch.Tensor | None = None) -> SurfacePoint:  # fmt: skip
     """Closest point on the posed body triangle mesh and the signed distance (negative inside).
 
-    points (B,N,3) m; body_vertices (B,Vb,3) (or (1,Vb,3)); body_faces (F,3) long. The magnitude is
-    the distance to the closest point (float64), the sign :func:`inside_body`. Default: warp BVH
-    per frame (CPU or CUDA); ``exact=True`` (or an open mesh): libigl AABB per frame on the CPU,
-    chunked brute force in torch on CUDA (module docstring: the tolerance between the two). Not
+    points (B,N,3) m; body_vertices (B,Vb,3) (or (1,Vb,3)); body_faces (F,3) long; ``outer_faces``
+    (F,) bool, the body's outer surface (:mod:`drapebench.geometry.outer_surface`; None: every
+    face): the closest point is searched on those faces only. The magnitude is the distance to the
+    closest point (float64), the sign :func:`inside_body` of the whole mesh. Default: warp BVH per
+    frame (CPU or CUDA); ``exact=True`` (or an open mesh): libigl AABB per frame on the CPU, chunked
+    brute force in torch on CUDA (module docstring: the tolerance between the two). Not
     differentiable (see the module docstring for a differentiable use of the result). Returns
     :class:`SurfacePoint`.
     """
     points, body_vertices = _as_batch(points, body_vertices)
     faces = _checked_faces(body_faces, body_vertices)
+    searched = _searched_faces(outer_faces, faces)
     if exact or not body_bvh.is_closed(faces):
-        return _closest_exact(points, body_vertices, faces)
-    return _surface_point(points, body_vertices, faces, body_bvh.query(points, body_vertices, faces))
+        return _closest_exact(points, body_vertices, faces, searched)
+    return _surface_point(points, body_vertices, faces, body_bvh.query(points, body_vertices, faces, outer_faces=outer_faces))
 
 
 def body_proximity(points: torch.Tensor, body_vertices: torch.Tensor, body_normals: torch.Tensor, body_faces: torch.Tensor,
-                   exact: bool = False) -> tuple[SurfacePoint, NearestVertex]:  # fmt: skip
+                   exact: bool = False, outer_faces: torch.Tensor | None = None) -> tuple[SurfacePoint, NearestVertex]:  # fmt: skip
     """:func:`closest_body_point` and :func:`drapebench.geometry.proximity.nearest_body_vertex` (whole
-    body) of the same points in one pass over the body (one BVH refit per frame on the default path).
+    body, or the corners of ``outer_faces``) of the same points in one pass over the body (one BVH
+    refit per frame on the default path).
 
-    points (B,N,3) m; body_vertices and body_normals (B,Vb,3) (or (1,Vb,3)); body_faces (F,3) long.
-    ``exact=True`` (or an open mesh): libigl for the surface point, scipy's KD-tree for the vertex.
+    points (B,N,3) m; body_vertices and body_normals (B,Vb,3) (or (1,Vb,3)); body_faces (F,3) long;
+    ``outer_faces`` (F,) bool as in :func:`closest_body_point`. ``exact=True`` (or an open mesh):
+    libigl for the surface point, scipy's KD-tree for the vertex.
     """
     points, body_vertices, body_normals = _as_batch(points, body_vertices, body_normals)
     faces = _checked_faces(body_faces, body_vertices)
+    searched = _searched_faces(outer_faces, faces)
     if exact or not body_bvh.is_closed(faces):
-        return _closest_exact(points, body_vertices, faces), nearest_body_vertex(points, body_vertices, body_normals)
-    found = body_bvh.query(points, body_vertices, faces, nearest_vertex=True)
+        candidates = None if outer_faces is None else torch.unique(faces[searched])
+        return _closest_exact(points, body_vertices, faces, searched), nearest_body_vertex(points, body_vertices, body_normals, candidates)
+    found = body_bvh.query(points, body_vertices, faces, nearest_vertex=True, outer_faces=outer_faces)
     return _surface_point(points, body_vertices, faces, found), nearest_from_indices(points, body_vertices, body_normals, found.vertex.to(points.device))
 
 
@@ -248,14 +276,15 @@ def _surface_point(points: torch.Tensor, body_vertices: torch.Tensor, faces: tor
     return SurfacePoint((sign * d).to(dt), found.closest.to(dt), found.face.to(points.device), direction.to(dt))
 
 
-def _closest_exact(points: torch.Tensor, body_vertices: torch.Tensor, faces: torch.Tensor) -> SurfacePoint:
-    """:func:`closest_body_point` by libigl (CPU) or torch brute force (CUDA) over the culled faces."""
+def _closest_exact(points: torch.Tensor, body_vertices: torch.Tensor, faces: torch.Tensor, searched: torch.Tensor) -> SurfacePoint:
+    """:func:`closest_body_point` by libigl (CPU) or torch brute force (CUDA) over the faces
+    ``searched`` (S,) culled to those near the points; the sign from the whole mesh."""
     inside = inside_body(points, body_vertices, faces, exact=True)
     dist, point, face, normal = [], [], [], []
     with torch.no_grad():
         pts, body = points.detach().double(), body_vertices.detach().double()
         for b in range(len(pts)):
-            face_ids = _near_faces(pts[b], body[b], faces)
+            face_ids = _near_faces(pts[b], body[b], faces, searched)
             cp, f, n = _BodySurface(body[b], _MeshIndex.build(faces[face_ids])).query(pts[b])
             offset = pts[b] - cp
             d = offset.norm(dim=-1)
@@ -269,7 +298,9 @@ def _closest_exact(points: torch.Tensor, body_vertices: torch.Tensor, faces: tor
     return SurfacePoint(torch.stack(dist).to(dt), torch.stack(point).to(dt), torch.stack(face), torch.stack(normal).to(dt))
 
 
-def signed_distance(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: torch.Tensor, exact: bool = False) -> torch.Tensor:
+def signed_distance(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: torch.Tensor, exact: bool = False,
+                    outer_faces: torch.Tensor | None = None) -> torch.Tensor:  # fmt: skip
     """Signed distance (B,N) in metres from points (B,N,3) to the posed body mesh (body_vertices
-    (B,Vb,3), body_faces (F,3)), negative inside. See :func:`closest_body_point`."""
-    return closest_body_point(points, body_vertices, body_faces, exact).distance
+    (B,Vb,3), body_faces (F,3); depth to its ``outer_faces`` (F,) bool when given), negative
+    inside. See :func:`closest_body_point`."""
+    return closest_body_point(points, body_vertices, body_faces, exact, outer_faces).distance

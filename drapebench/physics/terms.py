@@ -30,6 +30,7 @@ def energy_terms(
     collision_eps: float | None = None,
     candidates: torch.Tensor | None = None,
     body_faces: torch.Tensor | None = None,
+    body_outer_faces: torch.Tensor | None = None,
     near=None,
 ) -> dict[str, torch.Tensor]:
     """Named (B,) energies of garment positions x (B, V, 3) in joules (collision in m^3, unweighted).
@@ -41,7 +42,8 @@ def energy_terms(
     vertices searched, see ``proximity.culled_body_vertices``). With ``body_faces`` (F, 3) the
     collision term uses the exact signed distance of :mod:`drapebench.geometry.sdf` instead (the
     eps_c rule; body_normals may then be omitted): d_v = n . (x_v - p_v) to the closest body surface
-    point p_v with the detached closest point and normal, differentiable w.r.t. x. ``near``: that body
+    point p_v with the detached closest point and normal, differentiable w.r.t. x (``body_outer_faces``
+    (F,) bool: searched on the body's outer surface, ``BodyModel.outer_faces``). ``near``: that body
     query (``nearest_body_vertex`` or ``closest_body_point`` of x, with ``point`` and ``normal``)
     already computed by the caller; the collision term then uses it. ``rest_angle`` and ``blend`` are passed
     to :func:`bending_energy`. Terms whose inputs are missing are skipped, never computed on placeholders.
@@ -65,7 +67,7 @@ def energy_terms(
         if body_faces is None:
             near = nearest_body_vertex(x, body_vertices, body_normals, candidates)
         else:  # closest point and normal carry no gradient: d is differentiable w.r.t. x only
-            near = closest_body_point(x, body_vertices, body_faces)
+            near = closest_body_point(x, body_vertices, body_faces, outer_faces=body_outer_faces)
     if near is not None:
         eps = material.collision_thickness if collision_eps is None else collision_eps
         terms["collision"] = collision_energy(x, near.point, near.normal, eps)

@@ -176,7 +176,7 @@ class GarmentStartsInside(ValueError):
 def _check_start(garment, start: torch.Tensor, rest_body: torch.Tensor, body) -> None:
     from drapebench.geometry.sdf import signed_distance
 
-    sd = signed_distance(start[None].float(), rest_body[None].float(), body.faces)[0]
+    sd = signed_distance(start[None].float(), rest_body[None].float(), body.faces, outer_faces=body.outer_faces)[0]
     inside = sd < 0
     if inside.float().mean() > MAX_START_INSIDE:
         raise GarmentStartsInside(

@@ -164,7 +164,7 @@ class GAPS(DrapingMethod):
         the body mesh and the exact signed distance (:mod:`drapebench.geometry.sdf`); "vertex": the
         nearest body vertex and its normal (the GAPS/SNUG code)."""
         if self.p["collision_distance"] == "surface":
-            return closest_body_point(x.detach(), body_vertices.detach(), self.body.faces)
+            return closest_body_point(x.detach(), body_vertices.detach(), self.body.faces, outer_faces=self.body.outer_faces)
         return nearest_body_vertex(x, body_vertices, body_normals, self.candidates)
 
     # ------------------------------------------------------------------ inference

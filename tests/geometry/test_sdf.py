@@ -8,28 +8,7 @@ import trimesh
 
 from drapebench.geometry import body_bvh
 from drapebench.geometry.sdf import closest_body_point, inside_body, signed_distance
-
-
-def _segment_distance(p, a, b):
-    """Distance from points p (N,3) to segments a-b (F,3): (N,F)."""
-    ab = b - a
-    t = np.clip(((p[:, None] - a) * ab).sum(-1) / np.maximum((ab * ab).sum(-1), 1e-300), 0, 1)
-    return np.linalg.norm(p[:, None] - (a + t[..., None] * ab), axis=-1)
-
-
-def _brute_unsigned(p, V, F):
-    """Independent point-triangle distance: plane distance when the projection is inside the triangle,
-    else the nearest of the three edges; min over all faces. p (N,3) -> (N,)."""
-    a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
-    n = np.cross(b - a, c - a)
-    n = n / np.linalg.norm(n, axis=-1, keepdims=True)
-    h = ((p[:, None] - a) * n).sum(-1)
-    proj = p[:, None] - h[..., None] * n
-    inside = np.ones(h.shape, bool)
-    for u, v in ((a, b), (b, c), (c, a)):
-        inside &= (np.cross(v - u, proj - u) * n).sum(-1) >= 0
-    edges = np.minimum.reduce([_segment_distance(p, a, b), _segment_distance(p, b, c), _segment_distance(p, c, a)])
-    return np.where(inside, np.abs(h), edges).min(1)
+from tests.meshes import brute_unsigned
 
 
 def _winding(p, V, F):
@@ -56,7 +35,7 @@ def test_signed_distance_matches_brute_force(shape, exact):
     p = rng.uniform(V.min(0) - 0.1, V.max(0) + 0.1, size=(600, 3))
     p = np.concatenate([p, V + rng.normal(scale=1e-3, size=V.shape)])  # just in/out of vertices
     sd = signed_distance(torch.as_tensor(p)[None], torch.as_tensor(V)[None], torch.as_tensor(F), exact=exact)[0].numpy()
-    assert np.allclose(np.abs(sd), _brute_unsigned(p, V, F), atol=1e-12)
+    assert np.allclose(np.abs(sd), brute_unsigned(p, V, F), atol=1e-12)
     inside = _winding_inside(p, V, F)
     assert 0 < inside.sum() < len(p) and np.array_equal(sd < 0, inside)
 
@@ -265,3 +244,18 @@ def test_body_proximity_finds_both_answers_in_one_pass(body_lowres, shift):
         assert torch.allclose((x - nn.point).norm(dim=-1), brute, atol=1e-6)
         assert torch.allclose(nn.distance, ((x - nn.point) * nn.normal).sum(-1))
         assert torch.equal(nn.normal, bn.gather(1, nn.index[..., None].expand(-1, -1, 3)))
+
+
+def test_inside_where_the_ray_runs_along_a_box_face():
+    """Points just off the faces of a sphere inside another: the first ray (the face normal) of a face
+    cut by the symmetry plane z = 0 runs in that plane, where warp's BVH slab test drops boxes that end
+    on it; every point must still read inside (winding 1)."""
+    head, part = trimesh.creation.icosphere(3, radius=0.2), trimesh.creation.icosphere(3, radius=0.04)
+    V = np.concatenate([head.vertices, part.vertices + (0.08, 0.0, 0.0)])
+    F = np.concatenate([head.faces, part.faces + len(head.vertices)])
+    tri = V[part.faces + len(head.vertices)]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    p = tri.mean(1) + 1e-5 * n / np.linalg.norm(n, axis=1, keepdims=True)
+    assert (np.abs(n[:, 2]) < 1e-12).any()  # some first rays do run in the plane
+    assert inside_body(torch.as_tensor(p)[None], torch.as_tensor(V)[None], torch.as_tensor(F))[0].all()
+
