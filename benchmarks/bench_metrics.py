@@ -49,8 +49,8 @@ def main(n_frames: int = 40, n_exact: int = 8) -> None:
                 g, seq, x = _scene(body, kind, motion, 60)
                 x, seq = x[-n_exact:], seq.slice(60 - n_exact)  # the deepest squat frames
                 bv = seq.vertices(body)
-                sd = signed_distance(x, bv, body.faces)
-                sd_exact = signed_distance(x, bv, body.faces, exact=True)
+                sd = signed_distance(x, bv, body.faces, outer_faces=body.outer_faces)
+                sd_exact = signed_distance(x, bv, body.faces, exact=True, outer_faces=body.outer_faces)
                 a, b = evaluate(g, seq, body, x, energies=False)[1], evaluate(g, seq, body, x, energies=False, exact=True)[1]
                 print(f"  {motion}: max |sd - exact| {float((sd - sd_exact).abs().max()) * 1e3:.2g} mm, sign differs at "
                       f"{int(((sd < 0) != (sd_exact < 0)).sum())} of {sd.numel()} points; max |eps_c diff| "
