@@ -48,7 +48,7 @@ TABLE_NOTES = {
 }
 REFERENCE_METHOD = "pbs"  # the physics reference run as a method: the speed-ups of runtime_vs_error are over it
 # the reference's distance from itself, run as methods against the vbd reference (conf/method/<name>.yaml)
-FLOOR_METHODS = {"pbs_style3d": "the other solver (Style3D)", "pbs_half_dt": "vbd at half the time step (20 substeps)"}
+FLOOR_METHODS = {"pbs_style3d": "the other solver (Style3D)", "pbs_half_dt": "vbd at half the time step of the reference"}
 
 
 def reference_floor(df: pd.DataFrame, group: str = "garment") -> str:
