@@ -1,8 +1,8 @@
 """The body's outer surface: the faces of a closed body mesh that are not buried inside another part.
 
-A body mesh can hold surface that lies inside the body: a second closed part (the eyes behind the
-skin), or skin that folds against skin (between the toes, at the lips). Such a face bounds no volume
-a garment can reach from outside. A face is on the outer surface when some point of it, moved
+A body mesh can hold surface that lies inside the body: a second closed part sunk into another (the
+back of an eyeball inside the head) and the surface that part covers (the eye socket's skin behind
+the eyeball). Such a face bounds no volume a garment can reach from outside. A face is on the outer surface when some point of it, moved
 ``OFFSET`` m off the face along its outward normal, lies outside every part of the mesh (winding
 number <= 0.5, the rule of :func:`drapebench.geometry.sdf.inside_body`). The points tested per face
 are ``SAMPLES`` (barycentric: the centroid, points near each corner and between two corners), so a
@@ -60,10 +60,3 @@ def outer_faces(vertices: torch.Tensor, faces: torch.Tensor) -> torch.Tensor:
     mask = OUTER_SURFACES.get_or_build(path, lambda: _build(v, f), _write, np.load)
     return torch.from_numpy(np.asarray(mask, dtype=bool)).to(torch.as_tensor(faces).device)
 
-
-def outer_vertices(faces: torch.Tensor, outer: torch.Tensor, n_vertices: int) -> torch.Tensor:
-    """(C,) long sorted indices of the body vertices that are a corner of an outer face (outer (F,) bool
-    of faces (F,3)); the nearest-vertex candidates of the outer surface."""
-    mask = torch.zeros(n_vertices, dtype=torch.bool, device=faces.device)
-    mask[faces[outer.to(faces.device)].reshape(-1)] = True
-    return torch.nonzero(mask).squeeze(1)

@@ -6,8 +6,8 @@ Rule: a point is inside when the winding number of the whole body mesh at it exc
 parts add up, so a point inside the thigh but closest to the belly reads as inside. With the body's
 outer faces given (``outer_faces=``, :mod:`drapebench.geometry.outer_surface`) the magnitude is the
 distance to the closest point of the outer surface: faces buried inside another part (the back of an
-eye, skin folded against skin between the toes) are not searched, so a point deep in the head reads
-its depth to the skin, not to the eye behind it. For a point outside the body the two agree (the
+eyeball, the socket's skin behind it) are not searched, so a point deep in the head reads its depth
+to the skin, not to the eye behind it. For a point outside the body the two agree (the
 closest point of the whole mesh then lies on the outer surface).
 
 Two paths give the same result up to a stated tolerance:

@@ -305,3 +305,22 @@ def test_collision_by_signed_distance_penalises_points_inside_the_body():
     assert ((x.grad * x.detach()).sum(-1) < 0).all()  # descent direction -grad points outward
     with pytest.raises(ValueError, match="body_normals .* or body_faces"):
         energy_terms(x.detach(), topo, MAT, body_vertices=BV)
+
+
+def test_collision_by_signed_distance_measures_depth_on_the_outer_surface():
+    """A sphere body with a part buried in it (radius 0.15): points at radius 0.3 are 0.2 m deep below
+    the outer surface, 0.15 m from the buried part; with body_outer_faces the penalty uses 0.2."""
+    from drapebench.geometry.outer_surface import outer_faces
+
+    outer, buried = trimesh.creation.icosphere(3, radius=0.5), trimesh.creation.icosphere(2, radius=0.15)
+    BV = torch.as_tensor(np.concatenate([outer.vertices, buried.vertices]))[None]
+    BF = torch.as_tensor(np.concatenate([outer.faces, buried.faces + len(outer.vertices)]))
+    g = trimesh.creation.icosphere(1, radius=0.3)
+    topo = get_topology(g.vertices, g.faces)
+    x, BV = torch.as_tensor(g.vertices, dtype=topo.dtype)[None], BV.to(topo.dtype)
+    mask = outer_faces(BV[0], BF)
+    e_outer = energy_terms(x, topo, MAT, body_vertices=BV, body_faces=BF, body_outer_faces=mask, collision_eps=0.0)["collision"]
+    e_whole = energy_terms(x, topo, MAT, body_vertices=BV, body_faces=BF, collision_eps=0.0)["collision"]
+    n = topo.n_vertices
+    assert torch.allclose(e_outer, torch.tensor([n * 0.2**3], dtype=topo.dtype), rtol=0.05)
+    assert torch.allclose(e_whole, torch.tensor([n * 0.15**3], dtype=topo.dtype), rtol=0.05)
