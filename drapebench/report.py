@@ -131,9 +131,44 @@ def mark_failures(t: pd.DataFrame, failed: pd.DataFrame, group: str = "garment")
     return out
 
 
+SEED_COLUMNS = ("seed", "train_seed")  # what tells runs that differ only in their seed apart
+
+
+def seed_ids(df: pd.DataFrame) -> pd.Series:
+    """One label per run naming its seeds ("0", or "0/3" where the training seed differs from the run's seed);
+    "" for runs that record none."""
+    cols = [c for c in SEED_COLUMNS if c in df]
+    if not cols:
+        return pd.Series("", index=df.index)
+    parts = df[cols].astype(object).where(df[cols].notna(), "")
+    return parts.apply(lambda r: "/".join(dict.fromkeys(str(int(v)) if v != "" else "" for v in r)).strip("/"), axis=1)
+
+
+def seed_stats(g: pd.DataFrame, metric: str) -> tuple[float, float, int]:
+    """Mean, sample std and count of ``metric`` over the seeds of the runs ``g`` (one table cell): each seed's
+    runs (its scenes: shapes, motions) are averaged first, then the seeds; std is nan for one seed."""
+    per_seed = g.groupby(seed_ids(g), sort=False)[metric].mean().dropna()
+    n = len(per_seed)
+    return (float(per_seed.mean()) if n else float("nan"), float(per_seed.std(ddof=1)) if n > 1 else float("nan"), n)
+
+
+def unbalanced_seeds(df: pd.DataFrame, group: str) -> list[str]:
+    """The (method, ``group`` value) cells whose seeds cover different scenes (not comparable as seeds)."""
+    scene_cols = [c for c in ("garment", "motion", "shape", "body", "dtype") if c in df and c != group]
+    out = []
+    for (method, value), g in df.groupby(["method", group], sort=False):
+        scenes = g.assign(_seed=seed_ids(g)).groupby("_seed")[scene_cols].apply(
+            lambda s: tuple(sorted(map(tuple, s.astype(str).values))))  # fmt: skip
+        if scenes.nunique() > 1:
+            out.append(f"{method} on {value}")
+    return out
+
+
 def table(df: pd.DataFrame, metrics: list[str], decimals: int = 3, group: str = "garment") -> pd.DataFrame:
     """Methods x (``group`` value, metric) table of formatted cells (groups: garments, or body shapes with
-    ``group="shape"``); repeated runs are averaged."""
+    ``group="shape"``). Runs of a cell that differ only in their seed give "mean ± std (n=k)" over the k seeds
+    (each seed's runs averaged first); a cell of one seed gives its mean, "± std" where the runs carry a
+    ``<metric>_std`` column (the spread over frames)."""
     if group not in df:
         raise KeyError(f"the runs have no {group!r} column (written by drapebench.experiment since the table needs it); rerun them")
     cells = {}
@@ -141,12 +176,14 @@ def table(df: pd.DataFrame, metrics: list[str], decimals: int = 3, group: str = 
         for m in metrics:
             if m not in g:
                 continue
-            mean = g[m].mean()
+            mean, std, n = seed_stats(g, m)
             std_col = f"{m}_std"
-            if std_col in g and pd.notna(g[std_col].mean()):
-                cells[(method, garment, m)] = f"{mean:.{decimals}f} ± {g[std_col].mean():.{decimals}f}"
+            if n > 1:
+                cells[(method, garment, m)] = f"{mean:.{decimals}f} ± {std:.{decimals}f} (n={n})"
+            elif std_col in g and pd.notna(g[std_col].mean()):
+                cells[(method, garment, m)] = f"{g[m].mean():.{decimals}f} ± {g[std_col].mean():.{decimals}f}"
             else:
-                cells[(method, garment, m)] = f"{mean:.{decimals}f}"
+                cells[(method, garment, m)] = f"{g[m].mean():.{decimals}f}"
     methods = list(dict.fromkeys(df["method"]))
     garments = list(dict.fromkeys(df[group]))
     cols = pd.MultiIndex.from_tuples([(g, metric_label(m)) for g in garments for m in metrics], names=[group, "metric"])
@@ -156,10 +193,39 @@ def table(df: pd.DataFrame, metrics: list[str], decimals: int = 3, group: str = 
     return out.fillna("–")
 
 
+def seeds_note(df: pd.DataFrame, group: str | None) -> str:
+    """The line under a table on what its ± means: the seeds behind its cells, and the cells whose seeds
+    cover different scenes."""
+    ids = seed_ids(df)
+    seeds = ", ".join(sorted(set(ids) - {""}, key=lambda s: [int(p) for p in s.split("/")])) or "not recorded"
+    counts = df.assign(_seed=ids).groupby(["method"] + ([group] if group else []), sort=False)["_seed"].nunique()
+    several = bool((counts > 1).any())
+    line = (f"Seeds: {seeds}. A cell \"mean ± std (n=k)\" is the mean and sample std over k training seeds (each "
+            "seed's runs averaged first); a \"mean ± std\" without n is one seed's mean and its spread over frames."
+            if several else f"Seeds: {seeds} (one per cell: a \"± std\" is the spread over frames, not over seeds).")  # fmt: skip
+    bad = unbalanced_seeds(df, group) if group and several else []
+    if bad:
+        line += f" Not comparable as seeds (their seeds ran different scenes): {', '.join(bad)}."
+    return line
+
+
+def commits_note(df: pd.DataFrame) -> str:
+    """A warning naming each method's commits when the runs behind a table come from more than one commit
+    ("" when they all come from one)."""
+    if "commit" not in df or df["commit"].nunique() <= 1:
+        return ""
+    per = df.groupby("method", sort=False)["commit"].agg(lambda c: ", ".join(str(x)[:7] for x in dict.fromkeys(c)))
+    return (f"**Mixed commits**: the rows come from {df['commit'].nunique()} commits, so code changed between them: "
+            + "; ".join(f"{m} {c}" for m, c in per.items()) + ".")
+
+
 def run_table(df: pd.DataFrame, failed: pd.DataFrame, metrics: list[str], decimals: int = 3) -> pd.DataFrame:
     """One row per run (its scene in ``CASE_COLUMNS``, then ``metrics``), the failed runs' metric cells
     "failed"; rows in the order of the runs."""
     cases = [c for c in CASE_COLUMNS if c in df or c in failed]
+    if seed_ids(df).nunique() > 1:  # runs that differ only in their seed stay apart, named by it
+        df = df.assign(seed=seed_ids(df))
+        cases.append("seed")
     done = df.reindex(columns=cases + metrics).astype(object)
     for m in metrics:
         done[m] = [f"{v:.{decimals}f}" if pd.notna(v) else "–" for v in df.get(m, pd.Series([float("nan")] * len(df)))]
@@ -454,11 +520,15 @@ def write_table(dirs, name: str, out: Path, command: str | None = None, methods:
         notes += "\n\n" + reference_floor(df, group)
     if name == "runtime_vs_error" and speedups(df):
         notes += "\n\n" + speedups(df)
+    notes += "\n\n" + seeds_note(df, group)
+    if commits_note(df):
+        notes += "\n\n" + commits_note(df)
     out = Path(out)
     paths = [out.with_suffix(".md"), out.with_suffix(".tex"), out.with_suffix(".csv"), out.parent / f"{out.name}_runtime.png"]
     with atomic_write(paths[0], "w") as f:
         f.write(f"# {name}\n\n{_markdown(t)}\n{notes}\n\n{about}\n\n{prov}\n")
-    comment = "".join(f"{{c}} {line}\n" for line in (prov, *about.split("\n\n")))
+    header = (prov, *about.split("\n\n"), seeds_note(df, group), *([commits_note(df)] if commits_note(df) else []))
+    comment = "".join(f"{{c}} {line}\n" for line in header)
     with atomic_write(paths[1], "w") as f:
         f.write(comment.format(c="%") + t.style.to_latex(hrules=True, multicol_align="c"))
     with atomic_write(paths[2], "w") as f:

@@ -15,7 +15,7 @@ import torch
 
 from drapebench.cache import PROJECT_ROOT, atomic_write
 
-SUMMARY_COLUMNS = ["method", "garment", "motion", "body", "reference", "shape", "n_vertices", "n_frames", "eps_e", "eps_a", "eps_c", "eps_c_std",
+SUMMARY_COLUMNS = ["method", "garment", "motion", "body", "reference", "shape", "seed", "n_vertices", "n_frames", "eps_e", "eps_a", "eps_c", "eps_c_std",
                    "edge_mm", "smoothness", "penetration_mm", "jitter", "vertex_error_mm", "ms_per_frame", "train_s"]  # fmt: skip
 
 

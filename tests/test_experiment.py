@@ -96,6 +96,20 @@ def test_default_training_is_the_cpu_budget_and_paper_is_opt_in():
     assert paper.epochs == 1000 and paper.max_minutes is None
 
 
+def test_the_run_seed_is_the_training_seed_and_a_new_seed_trains_a_new_checkpoint():
+    from drapebench.experiment import CHECKPOINTS
+
+    for preset in ("cpu", "paper"):
+        assert _compose([f"train={preset}"]).train.seed == 0
+        assert _compose([f"train={preset}", "seed=2"]).train.seed == 2  # `-m seed=0,1,2`: one model per seed
+
+    def key(overrides):
+        cfg = _compose(["method=gaps", *overrides])
+        return CHECKPOINTS.path(OmegaConf.to_container(cfg.method, resolve=True), OmegaConf.to_container(cfg.train, resolve=True))
+
+    assert key(["seed=0"]) == key([]) != key(["seed=1"])
+
+
 def test_gaps_reads_its_own_training_keys_per_budget_and_a_wrong_train_key_fails():
     cpu = _compose(["method=gaps"]).method.params.train
     assert cpu.lr_output_factor == 0.02 and cpu.kext_ramp_epochs == 3 and cpu.window == 3  # conf/method/gaps_budget/cpu.yaml

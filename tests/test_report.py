@@ -144,7 +144,7 @@ def test_tables_and_summaries_carry_the_scene_and_a_legend_of_their_metrics(tmp_
 def test_legend_and_headline_come_from_one_catalogue():
     from drapebench.results import METRICS, SUMMARY_COLUMNS, headline, legend
 
-    numeric = [c for c in SUMMARY_COLUMNS if c not in ("method", "garment", "motion", "body", "reference", "shape", "n_vertices", "n_frames")]
+    numeric = [c for c in SUMMARY_COLUMNS if c not in ("method", "garment", "motion", "body", "reference", "shape", "seed", "n_vertices", "n_frames")]
     assert not [c for c in numeric if c.removesuffix("_std") not in METRICS], "every summary metric needs a unit and direction"
     assert "nope" not in legend(["eps_c", "nope"]) and "eps_c: " in legend(["eps_c", "nope"])
     assert headline({"eps_e": 5.081, "eps_c": 0.0, "ms_per_frame": 7.03}) == "eps_e 5.08 %, eps_c 0 %, ms_per_frame 7.03 ms"
@@ -327,3 +327,67 @@ def test_a_wide_grouped_table_is_written_as_one_markdown_table_per_group():
     t.loc["gaps", "g1"] = "–"  # not run on g1: left out of g1's table only
     per_group = _markdown(t).split("**")
     assert "| gaps" not in per_group[per_group.index("g1") + 1] and "| gaps" in per_group[per_group.index("g0") + 1]
+
+
+def _seeded_runs(tmp_path, values, commits=("abc123",) * 3, skip=()):
+    """Copies of the lbs/tshirt fixture run, one per seed, with eps_e set from ``values``; ``skip``: seeds
+    whose run is moved to the skirt (a seed that ran another scene)."""
+    import json
+    import shutil
+
+    src = FIXTURES / "0_lbs_tshirt" / "metrics.json"
+    for seed, (v, commit) in enumerate(zip(values, commits)):
+        rec = json.loads(src.read_text())
+        rec.update(method="gaps", eps_e=v, seed=seed, train_seed=seed, commit=commit)
+        if seed in skip:
+            rec["motion"] = "kick"
+        d = tmp_path / f"{seed}_gaps_tshirt"
+        d.mkdir(parents=True)
+        (d / "metrics.json").write_text(json.dumps(rec))
+    shutil.copytree(FIXTURES / "2_pbs_tshirt", tmp_path / "9_pbs_tshirt")
+    return collect([tmp_path])
+
+
+def test_runs_that_differ_only_in_their_seed_give_mean_std_and_n(tmp_path):
+    df = _seeded_runs(tmp_path, [1.0, 2.0, 4.0])
+    t = table(df, ["eps_e", "eps_c"])
+    std = np.std([1.0, 2.0, 4.0], ddof=1)
+    assert t.loc["gaps", ("tshirt", "ε_e (%)")] == f"2.333 ± {std:.3f} (n=3)"
+    assert t.loc["pbs", ("tshirt", "ε_c (%)")] == "0.200 ± 0.050"  # one seed: the frame spread, no n
+    paths = write_table([tmp_path], "baseline", tmp_path / "out" / "t", command="pytest")
+    text = paths[0].read_text()
+    assert "(n=3)" in text and "Seeds: 0, 1, 2" in text and "over k training seeds" in text
+    assert "Mixed commits" not in text
+    csv = paths[2].read_text()
+    assert "# Seeds: 0, 1, 2" in csv and f"2.333 ± {std:.3f} (n=3)" in csv
+
+
+def test_a_seed_averages_its_scenes_first_and_a_seed_on_other_scenes_is_flagged(tmp_path):
+    import json
+
+    df = _seeded_runs(tmp_path, [1.0, 3.0, 5.0], skip=(2,))
+    from drapebench.report import seeds_note, seed_stats, unbalanced_seeds
+
+    assert unbalanced_seeds(df, "garment") == ["gaps on tshirt"]
+    assert "Not comparable as seeds" in seeds_note(df, "garment")
+    # a second scene for seed 0 is averaged into seed 0's value before the std over seeds
+    rec = json.loads((tmp_path / "0_gaps_tshirt" / "metrics.json").read_text())
+    rec.update(eps_e=3.0, motion="jump")
+    (tmp_path / "5_gaps_tshirt").mkdir()
+    (tmp_path / "5_gaps_tshirt" / "metrics.json").write_text(json.dumps(rec))
+    mean, std, n = seed_stats(collect([tmp_path]).query("method == 'gaps'"), "eps_e")
+    assert n == 3 and mean == pytest.approx((2.0 + 3.0 + 5.0) / 3) and std == pytest.approx(np.std([2.0, 3.0, 5.0], ddof=1))
+
+
+def test_a_table_from_several_commits_says_so(tmp_path):
+    _seeded_runs(tmp_path, [1.0, 2.0, 4.0], commits=("abc123", "def4567", "abc123"))
+    text = write_table([tmp_path], "baseline", tmp_path / "out" / "t", command="pytest")[0].read_text()
+    assert "**Mixed commits**: the rows come from 2 commits" in text and "gaps abc123, def4567" in text and "pbs abc123" in text
+
+
+def test_a_per_run_table_keeps_seeds_apart(tmp_path):
+    from drapebench.report import run_table
+
+    df = _seeded_runs(tmp_path, [1.0, 2.0, 4.0])
+    t = run_table(df, pd.DataFrame(), ["eps_e"])
+    assert list(t.loc["gaps", "seed"]) == ["0", "1", "2"] and list(t.loc["gaps", "eps_e"]) == ["1.000", "2.000", "4.000"]
