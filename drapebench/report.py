@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from drapebench.cache import atomic_write
+from drapebench.cache import PROJECT_ROOT, atomic_write
 from drapebench.results import METRICS, SUMMARY_COLUMNS, legend, metric_label
 
 # table name -> (metrics shown, what the column groups are)
@@ -561,7 +561,7 @@ def write_summary(sweep_dir: Path) -> Path:
 
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description="Paper-style tables from run or sweep directories.")
-    parser.add_argument("dirs", nargs="+", type=Path, help="run or sweep directories (searched for metrics.json)")
+    parser.add_argument("dirs", nargs="*", type=Path, help="run or sweep directories (searched for metrics.json)")
     parser.add_argument("--table", default="baseline", choices=sorted(TABLES))
     parser.add_argument("--methods", type=lambda s: [m for m in s.split(",") if m],
                         help="comma-separated methods to show, in this order (default: every method of the runs)")
@@ -570,7 +570,17 @@ def main(argv=None) -> None:
     parser.add_argument("--loss-curves", action="store_true", help="instead: losses.png beside every losses.csv in dirs")
     parser.add_argument("--evaluations", action="store_true",
                         help="instead: one plot of the runs' per-epoch evaluations (evaluations.csv; the VAE's collisions per epoch) at --out.png")
+    parser.add_argument("--claims", action="store_true",
+                        help="instead: the claims scoreboard from the committed CSVs in reports/ (or the dirs given) to reports/claims.md (or --out.md)")
     args = parser.parse_args(argv)
+    if args.claims:
+        from drapebench.claims import write_claims
+
+        reports = args.dirs[0] if args.dirs else PROJECT_ROOT / "reports"
+        print(write_claims(reports, args.out.with_suffix(".md") if args.out else None))
+        return
+    if not args.dirs:
+        parser.error("give the run or sweep directories to read (or --claims)")
     if args.evaluations:
         print(evaluation_plot(args.dirs, (args.out or default_out("evaluations")).with_suffix(".png")))
         return

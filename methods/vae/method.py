@@ -31,6 +31,8 @@ POSE_SCHEDULE = dict(batch_size=256, lr=1.0e-3, lr_after=None, lr_switch_epoch=N
 def _timed(timings: dict, name: str, fn, *args):
     t = time.perf_counter()
     out = fn(*args)
+    if isinstance(out, torch.Tensor) and out.is_cuda:  # a GPU stage's time is its kernels', not their launch
+        torch.cuda.synchronize(out.device)
     timings[name] = timings.get(name, 0.0) + (time.perf_counter() - t) * 1e3
     return out
 
