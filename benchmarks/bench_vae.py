@@ -59,7 +59,7 @@ def write_table(rows: list[dict], out: Path, device: str, frames: int) -> None:
     """``out``.md and ``out``.csv: per garment the paper's and our regressor / decoder / posing ms per frame."""
     df = pd.DataFrame(rows).set_index("garment")
     command = "python benchmarks/bench_vae.py " + " ".join(sys.argv[1:])
-    about = (f"Produced by `{command}` at commit {git_commit()} on {machine(device)}.",
+    about = (f"Produced by `{command}` from runs at commit(s) {git_commit()} on {machine(device)}.",
              f"Scene: garments tshirt, dress; body anny; motion kick ({frames} frames); best of 3 drapes per stage; untrained "
              "networks of the configured sizes (timing does not depend on trained values).",
              "Legend: ms per frame (lower). regressor: motion descriptor + GRU; decoder: VAE decoder; posing: body transforms + "

@@ -305,7 +305,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
         "ms_per_frame": drape_ms_per_frame(result.timings_ms, drape_s, seq.n_frames), "train_s": train_s,
         "setup_s": result.timings_ms.get("setup", 0.0) / 1e3,
         **{f"ms_{k}": v / seq.n_frames for k, v in result.timings_ms.items() if k != "setup"},
-        "seed": int(cfg.seed), "train_seed": int(cfg.train.seed), "experiment": cfg.experiment_name, "checkpoint": ckpt, "commit": git_commit(),
+        "seed": int(cfg.seed), "train_seed": int(cfg.train.seed), "device": str(cfg.device), "experiment": cfg.experiment_name, "checkpoint": ckpt, "commit": git_commit(),
     }  # fmt: skip
     write_prediction(out / "prediction.h5", result.vertices, garment.faces, method=cfg.method.name, garment=garment.kind,
                      motion=seq.name, body=cfg.body.name, fps=seq.fps, n_transition=seq.n_transition)  # fmt: skip

@@ -523,7 +523,7 @@ def write_table(dirs, name: str, out: Path, command: str | None = None, methods:
     notes += "\n\n" + seeds_note(df, group)
     if commits_note(df):
         notes += "\n\n" + commits_note(df)
-    out = Path(out)
+    out = gpu_out(Path(out), df)
     paths = [out.with_suffix(".md"), out.with_suffix(".tex"), out.with_suffix(".csv"), out.parent / f"{out.name}_runtime.png"]
     with atomic_write(paths[0], "w") as f:
         f.write(f"# {name}\n\n{_markdown(t)}\n{notes}\n\n{about}\n\n{prov}\n")
@@ -536,6 +536,18 @@ def write_table(dirs, name: str, out: Path, command: str | None = None, methods:
         t.to_csv(f)
     (pareto_plot if name == "runtime_vs_error" else runtime_plot)(df, paths[3], title=name)
     return paths
+
+
+def gpu_out(out: Path, df: pd.DataFrame) -> Path:
+    """``out`` with ``_gpu`` appended to its name when the runs ran on a CUDA device (``device=cuda``, the GPU
+    track with ``train=paper``), so a GPU table stands beside the CPU one instead of replacing it."""
+    devices = set(df["device"].fillna("cpu").astype(str)) if "device" in df else {"cpu"}
+    on_gpu = all(d.startswith("cuda") for d in devices)
+    if on_gpu and not out.name.endswith("_gpu"):
+        return out.with_name(f"{out.name}_gpu")
+    if not on_gpu and any(d.startswith("cuda") for d in devices):
+        raise ValueError(f"the runs mix devices ({', '.join(sorted(devices))}): make a table of the CPU runs and one of the GPU runs")
+    return out
 
 
 def write_summary(sweep_dir: Path) -> Path:

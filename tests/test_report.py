@@ -391,3 +391,17 @@ def test_a_per_run_table_keeps_seeds_apart(tmp_path):
     df = _seeded_runs(tmp_path, [1.0, 2.0, 4.0])
     t = run_table(df, pd.DataFrame(), ["eps_e"])
     assert list(t.loc["gaps", "seed"]) == ["0", "1", "2"] and list(t.loc["gaps", "eps_e"]) == ["1.000", "2.000", "4.000"]
+
+
+def test_runs_on_a_gpu_write_a_gpu_table_beside_the_cpu_one(tmp_path):
+    import json
+
+    _seeded_runs(tmp_path, [1.0, 2.0, 4.0])
+    for f in tmp_path.rglob("metrics.json"):
+        f.write_text(json.dumps({**json.loads(f.read_text()), "device": "cuda"}))
+    paths = write_table([tmp_path], "baseline", tmp_path / "out" / "gaps_table1", command="pytest")
+    assert [p.name for p in paths] == ["gaps_table1_gpu.md", "gaps_table1_gpu.tex", "gaps_table1_gpu.csv", "gaps_table1_gpu_runtime.png"]
+    f = next(tmp_path.rglob("0_gaps_tshirt/metrics.json"))
+    f.write_text(json.dumps({**json.loads(f.read_text()), "device": "cpu"}))
+    with pytest.raises(ValueError, match="mix devices"):
+        write_table([tmp_path], "baseline", tmp_path / "out" / "t", command="pytest")
