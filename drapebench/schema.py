@@ -34,16 +34,30 @@ class GarmentConf:
     #                    it to the sequence's shape), "motion" = the sequence's betas, or a list of betas
 
 
+class UpAxis(Enum):
+    z = "z"  # AMASS as distributed: Z up, the root rotation carries SMPL's Y-up model frame into it
+    y = "y"  # SMPL's own frame: Y up, the person facing +Z
+
+
+class RootPlacement(Enum):
+    ground = "ground"  # the first frame's root over its rest position, its lowest point on the rest body's floor
+    file = "file"  # trans is the body's root translation as it is
+
+
 @dataclass
 class MotionConf:
-    name: str = "walk"  # a procedural motion, or file: a user's pose file (conf/motion/file.yaml)
-    n_frames: Optional[int] = 90  # motion=file: None = every frame of the file
-    fps: Optional[float] = 30.0  # motion=file: None = the file's fps
+    name: str = "walk"  # a procedural motion, file: a user's pose file, amass: an AMASS/SMPL file (conf/motion/)
+    n_frames: Optional[int] = 90  # motion=file/amass: None = every frame of the file (amass: from start)
+    fps: Optional[float] = 30.0  # motion=file: None = the file's fps; amass: the file is resampled to it (None: the file's)
     transition: int = 15
     seed: int = 1000
     betas: Optional[List[float]] = None  # test body shape; None = mean (motion=file: the file's betas)
     params: Dict[str, Any] = field(default_factory=dict)
-    path: Optional[str] = None  # motion=file: .npz/.h5 with poses (T, J, 3) axis-angle [, trans, betas, fps]
+    path: Optional[str] = None  # motion=file: .npz/.h5 with poses (T, J, 3) axis-angle [, trans, betas, fps]; amass: .npz/.pkl
+    start: Optional[int] = None  # motion=amass: first frame kept, counted at fps
+    source_fps: Optional[float] = None  # motion=amass: the file's frame rate when it has none (None: mocap_framerate, ...)
+    up_axis: Optional[UpAxis] = None  # motion=amass: the file's world up axis
+    root: Optional[RootPlacement] = None  # motion=amass: how the root translation is placed
 
 
 @dataclass
