@@ -154,6 +154,13 @@ class Precision(Enum):
     float64 = "float64"  # body, garment topology, methods and metrics in double precision
 
 
+class ExportFormat(Enum):
+    none = "none"  # nothing exported (the default)
+    usd = "usd"  # export/drape.usd: garment and body, time-sampled (drapebench.export)
+    obj = "obj"  # export/obj/: an OBJ of the garment and of the body per frame
+    pc2 = "pc2"  # export/pc2/: a PC2 point cache and a rest OBJ each of garment and body
+
+
 class FailureMode(Enum):
     stop = "stop"  # a diverged simulation or training raises (the sweep stops)
     record = "record"  # it is written to the run's failed.json and the sweep goes on
@@ -171,6 +178,7 @@ class Config:
     data: DataConf = field(default_factory=DataConf)
     eval: EvalConf = field(default_factory=EvalConf)
     viz: VizMode = VizMode.rerun
+    export: ExportFormat = ExportFormat.none  # after the drape, into the run directory (python -m drapebench.export does it later)
     viz_body: Optional[str] = None  # body drawn in drape.rrd (e.g. anny_lowres: ~4x smaller file); None: the run's body
     force: bool = False  # rebuild cached data, checkpoints and references
     on_failure: FailureMode = FailureMode.stop  # drapebench.errors.DrapeFailed: stop, or record and go on
