@@ -191,7 +191,7 @@ def _warn_dropped(poses: np.ndarray, joints: tuple, body, layout: str, source: s
     """One warning line per group of layout joints the body lacks (hands, face) that the file moves."""
     kept = set(body.joint_names)
     groups = {"face": [n for n in FACE_JOINTS if n in joints and n not in kept],
-              "hands": [n for n in joints if n not in kept and n not in FACE_JOINTS]}  # fmt: skip
+              "hand": [n for n in joints if n not in kept and n not in FACE_JOINTS]}  # fmt: skip
     for group, names in groups.items():
         if names and np.abs(poses[:, [joints.index(n) for n in names]]).max() > 0:
             shown = ", ".join(names) if len(names) <= 3 else f"{names[0]} ... {names[-1]}"

@@ -112,7 +112,7 @@ def test_what_cannot_map_is_named_one_line_each(walk120, body_lowres, tmp_path, 
     lines = [r.getMessage() for r in caplog.records]
     assert len(lines) == 3, lines
     assert "SMPL-X rotations of its 3 face joint(s) (jaw, left_eye_smplhf, right_eye_smplhf) are dropped" in lines[0]
-    assert "SMPL-X rotations of its 30 hands joint(s) (left_index1 ... right_thumb3) are dropped" in lines[1]
+    assert "SMPL-X rotations of its 30 hand joint(s) (left_index1 ... right_thumb3) are dropped" in lines[1]
     assert "its 16 betas (gender male) are the shape of the SMPL-family model" in lines[2] and "its mean shape" in lines[2]
     assert torch.equal(seq.poses, clean.poses)  # nothing of them reaches the body
     assert not seq.betas.any()
