@@ -98,17 +98,19 @@ def file_checksum(path: str | os.PathLike) -> str:
 
 
 @contextlib.contextmanager
-def atomic_write(path: str | os.PathLike, mode: str = "wb") -> Iterator[Any]:
+def atomic_write(path: str | os.PathLike, mode: str = "wb", keep_suffix: bool = False) -> Iterator[Any]:
     """Open a temporary file next to ``path``; rename it onto ``path`` only on success.
 
     Use either as ``with atomic_write(p) as f: f.write(...)`` (file object, ``mode`` "wb"/"w")
     or with ``mode=None`` to get the temporary *path* for libraries that open files themselves
-    (h5py, torch.save, rerun). On an exception the temporary file is removed and ``path`` is left
-    as it was.
+    (h5py, torch.save, rerun). ``keep_suffix`` ends the temporary name in ``path``'s suffix too
+    (``.x.usd.1234.tmp.usd``), for libraries that choose the format by it (USD). On an exception the
+    temporary file is removed and ``path`` is left as it was.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    suffix = ".tmp" + (path.suffix if keep_suffix else "")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix, dir=path.parent)
     os.close(fd)
     umask = os.umask(0)
     os.umask(umask)

@@ -1,9 +1,9 @@
 """The pipeline behind ``run.py``: build (or load) the scene, train or load the method, drape, evaluate, write.
 
 Outputs in the Hydra run directory: ``metrics.json`` (one flat record), ``frames.csv`` (one row per
-frame), ``prediction.h5``, ``drape.rrd`` (unless ``viz=none``), ``config.yaml`` (resolved) and
-``env.json`` (commit, package versions, device, threads), and ``losses.csv`` for a learned method
-(drapebench.train). Every file is written atomically.
+frame), ``prediction.h5``, ``drape.rrd`` (unless ``viz=none``), ``export/`` (with ``export=usd|obj|pc2``:
+drapebench.export), ``config.yaml`` (resolved) and ``env.json`` (commit, package versions, device,
+threads), and ``losses.csv`` for a learned method (drapebench.train). Every file is written atomically.
 """
 
 from __future__ import annotations
@@ -253,6 +253,11 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     viz = getattr(cfg.viz, "name", cfg.viz)  # a VizMode member once validated by the schema
     if viz not in ("rerun", "none"):
         raise ValueError(f"viz must be 'rerun' or 'none', not {viz!r}")
+    export = getattr(cfg.export, "name", cfg.export)  # an ExportFormat member once validated by the schema
+    if export == "usd":
+        from drapebench.export import require_usd
+
+        require_usd()  # before the drape, not after it
     (out / "metrics.json").unlink(missing_ok=True)  # a rerun into the same folder is incomplete until it ends
     torch.set_num_threads(job_threads(cfg))
     torch.manual_seed(int(cfg.seed))
@@ -309,6 +314,14 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     }  # fmt: skip
     write_prediction(out / "prediction.h5", result.vertices, garment.faces, method=cfg.method.name, garment=garment.kind,
                      motion=seq.name, body=cfg.body.name, fps=seq.fps, n_transition=seq.n_transition)  # fmt: skip
+    if export != "none":
+        from drapebench.export import Drape, export_drape
+
+        t = time.perf_counter()
+        label = f"{cfg.method.name} {garment.kind} on {seq.name} ({cfg.body.name})"
+        paths = export_drape(out, Drape.from_scene(result.vertices, garment, seq, body, label), export)
+        stages["export_s"] = time.perf_counter() - t
+        log.info("exported the drape (%s): %d file(s) in %s", export, len(paths), paths[0].parent)
     with atomic_write(out / "frames.csv", "w") as f:
         frames.to_csv(f, index=False)
     with atomic_write(out / "config.yaml", "w") as f:

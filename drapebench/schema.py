@@ -34,16 +34,30 @@ class GarmentConf:
     #                    it to the sequence's shape), "motion" = the sequence's betas, or a list of betas
 
 
+class UpAxis(Enum):
+    z = "z"  # AMASS as distributed: Z up, the root rotation carries SMPL's Y-up model frame into it
+    y = "y"  # SMPL's own frame: Y up, the person facing +Z
+
+
+class RootPlacement(Enum):
+    ground = "ground"  # the first frame's root over its rest position, its lowest point on the rest body's floor
+    file = "file"  # trans is the body's root translation as it is
+
+
 @dataclass
 class MotionConf:
-    name: str = "walk"  # a procedural motion, or file: a user's pose file (conf/motion/file.yaml)
-    n_frames: Optional[int] = 90  # motion=file: None = every frame of the file
-    fps: Optional[float] = 30.0  # motion=file: None = the file's fps
+    name: str = "walk"  # a procedural motion, file: a user's pose file, amass: an AMASS/SMPL file (conf/motion/)
+    n_frames: Optional[int] = 90  # motion=file/amass: None = every frame of the file (amass: from start)
+    fps: Optional[float] = 30.0  # motion=file: None = the file's fps; amass: the file is resampled to it (None: the file's)
     transition: int = 15
     seed: int = 1000
     betas: Optional[List[float]] = None  # test body shape; None = mean (motion=file: the file's betas)
     params: Dict[str, Any] = field(default_factory=dict)
-    path: Optional[str] = None  # motion=file: .npz/.h5 with poses (T, J, 3) axis-angle [, trans, betas, fps]
+    path: Optional[str] = None  # motion=file: .npz/.h5 with poses (T, J, 3) axis-angle [, trans, betas, fps]; amass: .npz/.pkl
+    start: Optional[int] = None  # motion=amass: first frame kept, counted at fps
+    source_fps: Optional[float] = None  # motion=amass: the file's frame rate when it has none (None: mocap_framerate, ...)
+    up_axis: Optional[UpAxis] = None  # motion=amass: the file's world up axis
+    root: Optional[RootPlacement] = None  # motion=amass: how the root translation is placed
 
 
 @dataclass
@@ -140,6 +154,13 @@ class Precision(Enum):
     float64 = "float64"  # body, garment topology, methods and metrics in double precision
 
 
+class ExportFormat(Enum):
+    none = "none"  # nothing exported (the default)
+    usd = "usd"  # export/drape.usd: garment and body, time-sampled (drapebench.export)
+    obj = "obj"  # export/obj/: an OBJ of the garment and of the body per frame
+    pc2 = "pc2"  # export/pc2/: a PC2 point cache and a rest OBJ each of garment and body
+
+
 class FailureMode(Enum):
     stop = "stop"  # a diverged simulation or training raises (the sweep stops)
     record = "record"  # it is written to the run's failed.json and the sweep goes on
@@ -157,6 +178,7 @@ class Config:
     data: DataConf = field(default_factory=DataConf)
     eval: EvalConf = field(default_factory=EvalConf)
     viz: VizMode = VizMode.rerun
+    export: ExportFormat = ExportFormat.none  # after the drape, into the run directory (python -m drapebench.export does it later)
     viz_body: Optional[str] = None  # body drawn in drape.rrd (e.g. anny_lowres: ~4x smaller file); None: the run's body
     force: bool = False  # rebuild cached data, checkpoints and references
     on_failure: FailureMode = FailureMode.stop  # drapebench.errors.DrapeFailed: stop, or record and go on

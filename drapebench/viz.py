@@ -10,9 +10,9 @@ import torch
 from drapebench.cache import atomic_write
 
 
-def strain_colors(x: torch.Tensor, topology, max_strain: float = 0.1) -> np.ndarray:
-    """Per-vertex RGB (T, V, 3) uint8: mean relative edge-length change of incident edges,
-    white (0) -> orange -> red (>= ``max_strain``)."""
+def vertex_strain(x: torch.Tensor, topology) -> np.ndarray:
+    """Per-vertex strain (T, V) of positions ``x`` (T, V, 3) m: the mean relative edge-length change
+    |l - l0| / l0 of the vertex's edges (dimensionless; 0.1 = 10 %), in ``x``'s dtype."""
     from drapebench.geometry.ops import edge_lengths
 
     with torch.no_grad():
@@ -23,7 +23,17 @@ def strain_colors(x: torch.Tensor, topology, max_strain: float = 0.1) -> np.ndar
         for k in range(2):
             acc.index_add_(1, topology.edges[:, k], rel)
             cnt.index_add_(0, topology.edges[:, k], torch.ones_like(rel[0]))
-        s = (acc / cnt.clamp_min(1)).clamp(0, max_strain).numpy() / max_strain
+        return (acc / cnt.clamp_min(1)).numpy()
+
+
+def strain_colors(x: torch.Tensor, topology, max_strain: float = 0.1) -> np.ndarray:
+    """Per-vertex RGB (T, V, 3) uint8 of :func:`vertex_strain`: white (0) -> orange -> red (>= ``max_strain``)."""
+    return strain_rgb(vertex_strain(x, topology), max_strain)
+
+
+def strain_rgb(strain: np.ndarray, max_strain: float = 0.1) -> np.ndarray:
+    """RGB (..., 3) uint8 of strain values (...) (0.1 = 10 %): white (0) -> orange -> red (>= ``max_strain``)."""
+    s = np.clip(strain, 0, max_strain) / max_strain
     white, orange, red = np.array([235, 235, 240.0]), np.array([255, 160, 40.0]), np.array([210, 30, 30.0])
     lo = white + (orange - white) * np.clip(s * 2, 0, 1)[..., None]
     rgb = np.where((s > 0.5)[..., None], orange + (red - orange) * np.clip(s * 2 - 1, 0, 1)[..., None], lo)

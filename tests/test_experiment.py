@@ -427,3 +427,33 @@ def test_a_slice_of_the_stability_matrix_is_finite_and_the_same_in_float32_and_f
         assert rec["dtype"] in recs and all(math.isfinite(rec[k]) for k in ("max_strain", "max_penetration_mm", "eps_c", "drift_mm"))
     for k in ("max_strain", "max_penetration_mm", "eps_c", "eps_e"):
         assert recs["float64"][k] == pytest.approx(recs["float32"][k], rel=1e-3, abs=1e-4)
+
+
+def test_a_shipped_motion_written_in_amass_layout_drapes_as_the_original(tmp_path, body_lowres):
+    """kick through motion=kick, and the same kick sampled at AMASS's 120 fps, written as an SMPL-H file (SMPL's joint
+    order, T-pose rest, Z up) and read back through motion=amass at 30 fps: the same drape. The file holds the motion's
+    own transition from the rest pose, so the reader adds none; root=file: its trans is the body's."""
+    import numpy as np
+    import pandas as pd
+
+    from drapebench.body import make_sequence
+    from drapebench.body.amass import to_smpl_layout
+    from drapebench.experiment import run
+    from drapebench.results import read_prediction
+
+    n, tr = 8, 3
+    kick120 = make_sequence("kick", 4 * n - 3, 120.0, seed=1000, transition=4 * tr)  # frame 4k at 120 fps = frame k at 30 fps
+    np.savez(tmp_path / "kick.npz", **to_smpl_layout(kick120, body_lowres, "SMPL-H"), betas=np.zeros(16), gender=np.array("female"))
+    common = ["body=anny_lowres", "viz=none", "method=lbs"]
+    original = run(_compose([*common, "motion=kick", f"motion.n_frames={n}", f"motion.transition={tr}"]), tmp_path / "kick")
+    read = run(_compose([*common, "motion=amass", f"motion.path={tmp_path / 'kick.npz'}", f"motion.n_frames={n + tr}",
+                         "motion.transition=0", "motion.root=file"]), tmp_path / "amass")  # fmt: skip
+    assert read["motion"] == "amass" and read["n_frames"] == original["n_frames"] == n + tr
+    x_original, faces, _ = read_prediction(tmp_path / "kick" / "prediction.h5")
+    x_read, faces_read, attrs = read_prediction(tmp_path / "amass" / "prediction.h5")
+    assert np.array_equal(faces, faces_read) and attrs["fps"] == 30.0
+    assert np.abs(x_read - x_original).max() < 1e-5  # m
+    a = pd.read_csv(tmp_path / "kick" / "frames.csv").set_index("frame")
+    b = pd.read_csv(tmp_path / "amass" / "frames.csv").set_index("frame").loc[a.index]  # the original skips its transition
+    for column in ("eps_e", "eps_a", "eps_c", "penetration_mm", "max_strain"):
+        assert np.allclose(a[column], b[column], rtol=1e-4, atol=1e-4), column

@@ -339,6 +339,16 @@ class _SMPLUnpickler(pickle.Unpickler):
         return super().find_class(module, name)
 
 
+def read_pickle(path: Path) -> dict:
+    """The dict of an SMPL-family pickle (a body model or a pose file; Python 2 pickles too), chumpy arrays as
+    numpy, without chumpy installed. Raises ValueError when the pickle is not a dict."""
+    with open(path, "rb") as f:
+        d = _SMPLUnpickler(f, encoding="latin1").load()
+    if not isinstance(d, dict):
+        raise ValueError(f"{path}: expected a dict of SMPL arrays, found {type(d).__name__}")
+    return {k: (np.asarray(v) if isinstance(v, _ChumpyStub) else v) for k, v in d.items()}
+
+
 def _read_model_file(path: Path) -> dict:
     if path.suffix == ".npz":
         try:
@@ -350,11 +360,7 @@ def _read_model_file(path: Path) -> dict:
                 f"`git checkout -- {path}` or bake it again with `python -m drapebench.body.bake`"
             ) from err
     elif path.suffix in (".pkl", ".pickle"):
-        with open(path, "rb") as f:
-            d = _SMPLUnpickler(f, encoding="latin1").load()
-        if not isinstance(d, dict):
-            raise ValueError(f"{path}: expected a dict of SMPL arrays, found {type(d).__name__}")
-        d = {k: (np.asarray(v) if isinstance(v, _ChumpyStub) else v) for k, v in d.items()}
+        d = read_pickle(path)
     else:
         raise ValueError(f"{path}: unsupported body file type {path.suffix!r}; use .npz or .pkl")
     if "parents" not in d and "kintree_table" in d:

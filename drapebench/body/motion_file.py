@@ -1,6 +1,6 @@
 """A user's body motion from a file: poses in the body's joint order, checked, as a :class:`BodySequence`.
 
-File (``.npz``, or ``.h5``/``.hdf5`` with datasets of the same names): ``poses`` (T, J, 3) or (T, 3J)
+File (``.npz``, ``.pkl`` (a dict), or ``.h5``/``.hdf5`` with datasets of the same names): ``poses`` (T, J, 3) or (T, 3J)
 axis-angle in radians per joint, in the body's joint order (``body.joint_names``; docs/design.md), each
 rotation about the joint in world-aligned axes of the rest pose (Z up, facing -Y), chained parent ->
 child; optional ``trans`` (T, 3) root translation in metres (default zero), ``betas`` (S,) shape,
@@ -9,6 +9,8 @@ child; optional ``trans`` (T, 3) root translation in metres (default zero), ``be
 
 from __future__ import annotations
 
+import contextlib
+import pickle
 import zipfile
 import zlib
 from pathlib import Path
@@ -17,35 +19,53 @@ import h5py
 import numpy as np
 import torch
 
+from drapebench.body.model import read_pickle
 from drapebench.body.motions import smoothstep
 from drapebench.body.sequence import DEFAULT_TRANSITION, BodySequence, make_sequence
 
 MAX_ROOT_SPEED = 15.0  # m/s; a faster root is taken for a translation in centimetres or millimetres
 
 
-def read_motion_file(path: str | Path) -> dict:
-    """The arrays of a motion file: ``poses`` and whichever of ``trans``, ``betas``, ``fps`` it holds (numpy)."""
+def read_motion_file(path: str | Path, needs: str = "poses (T, J, 3) axis-angle [, trans (T, 3), betas (S,), fps]") -> dict:
+    """The arrays of a motion file (``.npz``, ``.h5``/``.hdf5`` or ``.pkl``; numpy): ``poses`` and whatever else it
+    holds. ``needs`` describes the expected content in the error for a file without ``poses``. Entries of an
+    ``.npz`` that only load as Python objects (allow_pickle) are left out."""
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(f"motion file {path} does not exist (motion.path must name an .npz or .h5 file)")
+        raise FileNotFoundError(f"motion file {path} does not exist (motion.path must name an .npz, .h5 or .pkl file)")
     suffix = path.suffix.lower()
-    if suffix not in (".npz", ".h5", ".hdf5"):
-        raise ValueError(f"{path}: unsupported motion file type {path.suffix!r}; use .npz or .h5")
+    if suffix not in (".npz", ".h5", ".hdf5", ".pkl"):
+        raise ValueError(f"{path}: unsupported motion file type {path.suffix!r}; use .npz, .h5 or .pkl")
     try:
         if suffix == ".npz":
             with np.load(path, allow_pickle=False) as z:
-                d = {k: z[k] for k in z.files}
+                d = {}
+                for k in z.files:
+                    with contextlib.suppress(ValueError):  # an object array (needs pickle): not an array we read
+                        d[k] = z[k]
+        elif suffix == ".pkl":
+            d = read_pickle(path)
         else:
             with h5py.File(path, "r") as f:
                 d = {k: f[k][()] for k in f if isinstance(f[k], h5py.Dataset)}
                 if "fps" in f.attrs and "fps" not in d:
                     d["fps"] = f.attrs["fps"]
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as err:
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error, pickle.UnpicklingError) as err:
         raise ValueError(f"{path} cannot be read as {suffix[1:]} ({type(err).__name__}: {err}); write it with numpy.savez or h5py") from err
     if "poses" not in d:
-        raise ValueError(f"{path} has no 'poses' array (found {sorted(d)}); a motion file needs poses (T, J, 3) axis-angle "
-                         "[, trans (T, 3), betas (S,), fps]")  # fmt: skip
+        raise ValueError(f"{path} has no 'poses' array (found {sorted(d)}); a motion file needs {needs}")
     return d
+
+
+def check_axis_angle(a: np.ndarray, source: str, key: str = "poses") -> None:
+    """Raise ValueError naming the frames when axis-angle rotations ``a`` (T, ...) hold NaN/Inf, or the fix when
+    they look like degrees (an angle above 2.5 pi)."""
+    if not np.isfinite(a).all():
+        frames = np.flatnonzero(~np.isfinite(a.reshape(len(a), -1)).all(1))[:10].tolist()
+        raise ValueError(f"{source}: {key} contain NaN or Inf (frames {frames}); clean the file")
+    angle = float(np.linalg.norm(a.reshape(-1, 3), axis=-1).max()) if a.size else 0.0
+    if angle > 2.5 * np.pi:
+        raise ValueError(f"{source}: a joint rotates by {angle:.0f} rad; {key} must be axis-angle in radians (degrees? multiply by pi/180)")
 
 
 def check_poses(poses: np.ndarray, body, source: str) -> np.ndarray:
@@ -65,11 +85,7 @@ def check_poses(poses: np.ndarray, body, source: str) -> np.ndarray:
     if poses.shape[1] != J:
         raise ValueError(f"{source}: poses have {poses.shape[1]} joints, body {body.name} has {J}; give them in its "
                          f"joint order: {names}")  # fmt: skip
-    if not np.isfinite(poses).all():
-        raise ValueError(f"{source}: poses contain NaN or Inf (frames {np.flatnonzero(~np.isfinite(poses).all((1, 2)))[:10].tolist()}); clean the file")
-    angle = float(np.linalg.norm(poses, axis=-1).max())
-    if angle > 2.5 * np.pi:
-        raise ValueError(f"{source}: a joint rotates by {angle:.0f} rad; poses must be axis-angle in radians (degrees? multiply by pi/180)")
+    check_axis_angle(poses, source)
     return poses.astype(np.float32)
 
 
@@ -99,42 +115,67 @@ def load_motion(path: str | Path, body, fps: float | None = None, betas=None, n_
         if not 2 <= n_frames <= T:
             raise ValueError(f"motion.n_frames={n_frames}: {path} has {T} frames; give 2..{T} or null for all")
         poses, trans = poses[:n_frames], trans[:n_frames]
+    if betas is None and "betas" in d:
+        betas = np.asarray(d["betas"], dtype=np.float32).reshape(-1)
+    return motion_sequence(poses, trans, fps, body, betas, transition, name or path.stem, "file", {"source": str(path)})
+
+
+def motion_sequence(poses: np.ndarray, trans: np.ndarray, fps: float, body, betas, transition: int, name: str, motion: str,
+                    params: dict) -> BodySequence:  # fmt: skip
+    """A test :class:`BodySequence` from poses (T, J, 3) axis-angle in the body's joint order and trans (T, 3) m at
+    ``fps`` Hz, with ``transition`` frames prepended that blend from the rest pose (pose 0, trans 0) into the first
+    frame (quintic smoothstep); betas padded by :meth:`BodyModel.full_betas` (None: mean shape). ``params["source"]``
+    names the file in errors: fewer than 2 frames, a root faster than :data:`MAX_ROOT_SPEED` (centimetres)."""
+    source = params["source"]
     if len(poses) < 2:
-        raise ValueError(f"{path} has {len(poses)} frame(s); a motion needs at least 2")
+        raise ValueError(f"{source} has {len(poses)} frame(s); a motion needs at least 2")
     speed = float(np.linalg.norm(np.diff(trans, axis=0), axis=1).max()) * fps
     if speed > MAX_ROOT_SPEED:
-        raise ValueError(f"{path}: the root moves at up to {speed:.0f} m/s; trans must be metres (centimetres? divide by 100)")
+        raise ValueError(f"{source}: the root moves at up to {speed:.0f} m/s; trans must be metres (centimetres? divide by 100)")
     if transition < 0:
         raise ValueError(f"motion.transition must be >= 0 frames, got {transition}")
     s = smoothstep(np.arange(transition) / max(transition, 1))[:, None]
     poses = np.concatenate([s[..., None] * poses[:1], poses]).astype(np.float32)
     trans = np.concatenate([s * trans[:1], trans]).astype(np.float32)
-    if betas is None and "betas" in d:
-        betas = np.asarray(d["betas"], dtype=np.float32).reshape(-1)
     return BodySequence(
-        name=name or path.stem, motion="file", betas=body.full_betas(betas, note=True).float().cpu(), poses=torch.from_numpy(poses),
-        trans=torch.from_numpy(trans), fps=fps, split="test", n_transition=transition, params={"source": str(path)},
+        name=name, motion=motion, betas=body.full_betas(betas, note=True).float().cpu(), poses=torch.from_numpy(poses),
+        trans=torch.from_numpy(trans), fps=fps, split="test", n_transition=transition, params=params,
     )  # fmt: skip
+
+
+AMASS_KEYS = ("start", "source_fps", "up_axis", "root")  # read only by motion=amass (drapebench.body.amass)
 
 
 def sequence_from_config(m: dict, body) -> BodySequence:
     """The test sequence a config's ``motion`` node (a dict) describes: ``file`` reads ``path``
-    (:func:`load_motion`), any other name generates a procedural motion (:func:`make_sequence`), with betas
-    padded by :meth:`BodyModel.full_betas`. Raises ValueError for a key the chosen motion does not read."""
-    if m["name"] == "file":
+    (:func:`load_motion`), ``amass`` an SMPL-family file (:func:`drapebench.body.amass.load_amass`), any other
+    name generates a procedural motion (:func:`make_sequence`), with betas padded by
+    :meth:`BodyModel.full_betas`. Raises ValueError for a key the chosen motion does not read."""
+    name = m["name"]
+    given = [k for k in AMASS_KEYS if m.get(k) is not None]
+    if given and name != "amass":
+        raise ValueError(f"motion.{given[0]} is read only by motion=amass (an AMASS/SMPL file), not by motion={name}")
+    if name in ("file", "amass"):
         if m.get("params"):
-            raise ValueError(f"motion.params {sorted(m['params'])} are parameters of the procedural motions; motion=file reads path")
+            raise ValueError(f"motion.params {sorted(m['params'])} are parameters of the procedural motions; motion={name} reads path")
         if m.get("path") in (None, "???"):
-            raise ValueError("motion=file needs the file: motion.path=/path/to/poses.npz (or .h5)")
-        return load_motion(m["path"], body, fps=m.get("fps"), betas=m.get("betas"), n_frames=m.get("n_frames"),
-                           transition=int(m["transition"]))  # fmt: skip
+            example = "poses.npz (or .h5)" if name == "file" else "CMU/01/01_01_poses.npz (AMASS .npz or an SMPL .pkl)"
+            raise ValueError(f"motion={name} needs the file: motion.path=/path/to/{example}")
+        if name == "file":
+            return load_motion(m["path"], body, fps=m.get("fps"), betas=m.get("betas"), n_frames=m.get("n_frames"),
+                               transition=int(m["transition"]))  # fmt: skip
+        from drapebench.body.amass import load_amass
+
+        enum = {k: getattr(m.get(k), "name", m.get(k)) for k in ("up_axis", "root")}  # Enum members once validated by the schema
+        return load_amass(m["path"], body, fps=m.get("fps"), start=int(m.get("start") or 0), n_frames=m.get("n_frames"),
+                          source_fps=m.get("source_fps"), betas=m.get("betas"), transition=int(m["transition"]), **enum)  # fmt: skip
     if m.get("path") is not None:
-        raise ValueError(f"motion.path is read only by motion=file (a user's pose file), not by motion={m['name']}")
+        raise ValueError(f"motion.path is read only by motion=file and motion=amass (a user's pose file), not by motion={name}")
     if m.get("n_frames") is None or m.get("fps") is None:
-        raise ValueError(f"motion={m['name']} needs motion.n_frames and motion.fps (null only for motion=file)")
+        raise ValueError(f"motion={name} needs motion.n_frames and motion.fps (null only for motion=file and motion=amass)")
     if int(m["n_frames"]) + int(m["transition"]) < 2:
         raise ValueError(f"motion.n_frames={m['n_frames']} with transition={m['transition']} gives fewer than 2 frames; "
                          "a motion needs at least 2 (velocities): raise motion.n_frames")  # fmt: skip
     betas = None if m.get("betas") is None else body.full_betas(m["betas"], note=True).float().cpu()
-    return make_sequence(m["name"], int(m["n_frames"]), float(m["fps"]), int(m["seed"]), betas=betas,
+    return make_sequence(name, int(m["n_frames"]), float(m["fps"]), int(m["seed"]), betas=betas,
                          transition=int(m["transition"]), split="test", **m.get("params", {}))  # fmt: skip
