@@ -247,6 +247,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     from drapebench.body.motion_file import sequence_from_config
     from drapebench.data import H5Sequences, TrainData
     from drapebench.garments import garment_from_config
+    from drapebench.metrics import check_near_origin
     from drapebench.physics import Material
 
     t_start = time.perf_counter()
@@ -264,6 +265,8 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     material = Material.from_config(OmegaConf.to_container(cfg.material, resolve=True))
     m = cfg.motion
     seq = sequence_from_config(OmegaConf.to_container(m, resolve=True), body)
+    if dtype != torch.float64 or cfg.reference.solver is not None:  # refused before any drape (the simulator is float32)
+        check_near_origin(seq.trans, "motion's root")
     garment = garment_from_config(OmegaConf.to_container(cfg.garment, resolve=True), body, seq.betas).in_dtype(dtype)
     stages["scene_s"] = time.perf_counter() - t
     log.info("scene: %s (%d vertices) on %s, %s (%d frames) in %.1f s", garment.kind, garment.n_vertices, body.name, seq.name,
