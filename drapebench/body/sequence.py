@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import math
+import numbers
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -62,6 +64,8 @@ class BodySequence:
         for key in ("betas", "poses", "trans"):
             if not torch.isfinite(getattr(self, key)).all():
                 raise ValueError(f"{self.name}: {key} contains NaN or Inf")
+        if isinstance(self.fps, bool) or not isinstance(self.fps, numbers.Real) or not (math.isfinite(self.fps) and self.fps > 0):
+            raise ValueError(f"{self.name}: fps must be a finite number of frames per second > 0, got {self.fps!r}; e.g. fps=30")
         if not 0 <= self.n_transition <= self.poses.shape[0]:
             raise ValueError(f"{self.name}: n_transition {self.n_transition} outside [0, {self.poses.shape[0]}]")
 

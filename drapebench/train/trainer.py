@@ -94,6 +94,8 @@ def train_config(cfg: Mapping[str, Any] | TrainConf | None) -> TrainConf:
     unknown = sorted(set(cfg) - set(valid))
     if unknown:
         raise ValueError(f"unknown train parameter(s) {unknown}; valid: {valid}")
+    if int(cfg.get("seed", 0)) < 0:
+        raise ValueError(f"train.seed must be >= 0 (it seeds numpy's generator), got {cfg['seed']}; e.g. train.seed=0")
     return TrainConf(**cfg)
 
 
