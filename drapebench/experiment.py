@@ -1,9 +1,10 @@
 """The pipeline behind ``run.py``: build (or load) the scene, train or load the method, drape, evaluate, write.
 
 Outputs in the Hydra run directory: ``metrics.json`` (one flat record), ``frames.csv`` (one row per
-frame), ``prediction.h5``, ``drape.rrd`` (unless ``viz=none``), ``config.yaml`` (resolved) and
-``env.json`` (commit, package versions, device, threads), and ``losses.csv`` for a learned method
-(drapebench.train). Every file is written atomically.
+frame), ``prediction.h5``, ``drape.rrd`` (unless ``viz=none``), ``config.yaml`` (resolved, written first:
+it says whose folder it is) and ``env.json`` (commit, package versions, device, threads), and
+``losses.csv`` for a learned method (drapebench.train). Every file is written atomically. A folder that
+holds another run's results is refused; an earlier run of the same config is cleared (logged).
 """
 
 from __future__ import annotations
@@ -191,12 +192,41 @@ def _reference(cfg: DictConfig, garment, seq, body, material):
     return rec.vertices.to(garment.vertices.dtype)
 
 
+RUN_FILES = ("metrics.json", "failed.json", "frames.csv", "prediction.h5", "drape.rrd", "losses.csv", "evaluations.csv",
+             "losses.png", "env.json", "config.yaml")  # what a run writes into its folder (losses.png: the report's)
+
+
+class RunFolderInUse(ValueError):
+    """The run folder holds another run's results; nothing was changed in it."""
+
+
+def claim_run_dir(out: Path, config: str) -> None:
+    """Make ``out`` the folder of the run whose resolved config (YAML) is ``config``, and write it there as
+    ``config.yaml``. Files of :data:`RUN_FILES` that an earlier run of the same config left (or an earlier
+    run that wrote no result) are removed, and the log says which; a folder whose files belong to another
+    run, or to no run that says so, raises :class:`RunFolderInUse` naming them and the fix."""
+    present = [n for n in RUN_FILES if (out / n).exists()]
+    earlier = (out / "config.yaml").read_text() if "config.yaml" in present else None
+    results = [n for n in present if n not in ("config.yaml", "env.json")]
+    if results and earlier != config:
+        whose = "another run (its config.yaml differs)" if earlier is not None else "no run of this config (there is no config.yaml)"
+        raise RunFolderInUse(f"run folder {out} holds results of {whose}: {', '.join(results)}; nothing was changed. Run "
+                             "into a new folder (hydra.run.dir=..., or leave it to Hydra's dated folders), or move those files away")  # fmt: skip
+    if present:
+        for name in present:
+            (out / name).unlink()
+        log.warning("run folder %s held files of an earlier run of this config (%s); removed them", out, ", ".join(present))
+    with atomic_write(out / "config.yaml", "w") as f:
+        f.write(config)
+
+
 def run(cfg: DictConfig, out_dir: str | Path | None = None) -> dict:
     """Run one experiment described by ``cfg``; writes the run's files into ``out_dir`` (default: the
     Hydra run directory) and returns the flat metrics record. When the method fails on the scene
     (:class:`drapebench.errors.DrapeFailed`) and ``cfg.on_failure`` is "record", writes ``failed.json``
     instead of ``metrics.json`` and returns that record (``status`` "failed"). Raises ValueError for a
-    config key nothing reads (:func:`drapebench.schema.check_keys`)."""
+    config key nothing reads (:func:`drapebench.schema.check_keys`), and :class:`RunFolderInUse` when
+    ``out_dir`` holds another run's results (:func:`claim_run_dir`)."""
     check_keys(cfg)
     if out_dir is None:
         from hydra.core.hydra_config import HydraConfig
@@ -204,7 +234,7 @@ def run(cfg: DictConfig, out_dir: str | Path | None = None) -> dict:
         out_dir = HydraConfig.get().runtime.output_dir
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "failed.json").unlink(missing_ok=True)
+    claim_run_dir(out, OmegaConf.to_yaml(cfg, resolve=True))
     try:
         with forcing(bool(cfg.force)):
             return _run(cfg, out)
@@ -254,7 +284,6 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     viz = getattr(cfg.viz, "name", cfg.viz)  # a VizMode member once validated by the schema
     if viz not in ("rerun", "none"):
         raise ValueError(f"viz must be 'rerun' or 'none', not {viz!r}")
-    (out / "metrics.json").unlink(missing_ok=True)  # a rerun into the same folder is incomplete until it ends
     torch.set_num_threads(job_threads(cfg))
     torch.manual_seed(int(cfg.seed))
     method_cls = _method_class(cfg)  # fail fast on an unknown method
@@ -314,8 +343,6 @@ def _run(cfg: DictConfig, out: Path) -> dict:
                      motion=seq.name, body=cfg.body.name, fps=seq.fps, n_transition=seq.n_transition)  # fmt: skip
     with atomic_write(out / "frames.csv", "w") as f:
         frames.to_csv(f, index=False)
-    with atomic_write(out / "config.yaml", "w") as f:
-        f.write(OmegaConf.to_yaml(cfg, resolve=True))
     write_json(out / "env.json", environment(cfg.device))
     if viz == "rerun":
         from drapebench.geometry.sdf import inside_body
