@@ -330,6 +330,16 @@ def test_a_non_finite_or_negative_fps_is_named_as_the_frame_rate(fps, body_lowre
         BodySequence("s", "walk", torch.zeros(10), torch.zeros(2, 22, 3), torch.zeros(2, 3), fps=fps)
 
 
+def test_a_tiny_fps_that_sends_the_root_kilometres_away_is_refused_before_the_drape(tmp_path, monkeypatch):
+    import methods.lbs.method as lbs
+    from drapebench.metrics import FarFromOrigin
+
+    monkeypatch.setattr(lbs.LBSMethod, "drape", lambda *a: pytest.fail("draped a scene float32 cannot measure"))
+    cfg = _compose(["body=anny_lowres", "viz=none", "motion.fps=0.001", "motion.n_frames=4", "motion.transition=0"])
+    with pytest.raises(FarFromOrigin, match=r"the motion's root lies up to \d+ m from the origin, .*dtype=float64"):
+        run(cfg, tmp_path / "out")
+
+
 @pytest.mark.parametrize("key", ["thickness", "bulk_density", "young", "bending_multiplier", "dt"])
 @pytest.mark.parametrize("value", [0.0, -1.0])
 def test_non_positive_material_values_are_named(key, value):
