@@ -170,7 +170,7 @@ def _gravity_of_origin(origin: torch.Tensor, topo, material) -> torch.Tensor:
     o (B, 3) m, so that energy_gravity keeps the world's datum (z = 0) though measured in the local frame."""
     mass = float(topo.vertex_masses(material).double().sum())
     g = torch.tensor(material.gravity, dtype=torch.float64, device=origin.device)
-    return (-mass * (origin @ g)).cpu()
+    return -mass * (origin @ g)
 
 
 def check_near_origin(positions: torch.Tensor, what: str = "prediction") -> None:

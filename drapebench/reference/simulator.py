@@ -301,7 +301,7 @@ def inside_share(x: np.ndarray, body_points: np.ndarray, body_faces: torch.Tenso
     from drapebench.geometry.sdf import inside_body
 
     points = torch.as_tensor(x, dtype=torch.float32)[None]
-    return float(inside_body(points, torch.as_tensor(body_points, dtype=torch.float32)[None], body_faces).float().mean())
+    return float(inside_body(points, torch.as_tensor(body_points, dtype=torch.float32)[None], body_faces.cpu()).float().mean())
 
 
 def find_inside(shares, fps: float) -> tuple[int, str] | None:
