@@ -214,7 +214,7 @@ class Cache:
         seal = _seal_path(path)
         if not seal.exists():
             problem = "has no checksum sidecar (foreign file or interrupted write)"
-        elif seal.read_text().strip() != file_checksum(path):
+        elif file_checksum(path) not in seal.read_text().split():
             problem = "fails its checksum (truncated or corrupt)"
         else:
             try:
@@ -229,18 +229,28 @@ class Cache:
         return None
 
     def store(self, path: str | os.PathLike, writer: Callable[[Path], None]) -> Path:
-        """Write an entry with ``writer(tmp_path)`` atomically, then seal it; returns ``path``."""
+        """Write an entry with ``writer(tmp_path)`` atomically, then seal it; returns ``path``. An entry
+        being replaced stays readable until its successor is in place: while the new file is renamed onto
+        it, the seal accepts both checksums, so a process killed at any point leaves a sealed entry."""
         path = Path(path)
         seal = _seal_path(path)
-        seal.unlink(missing_ok=True)
         with atomic_write(path, mode=None) as tmp:
             writer(tmp)
+            previous = seal.read_text().split() if seal.exists() and path.exists() else []
+            with atomic_write(seal, "w") as f:
+                f.write("\n".join([*previous, file_checksum(tmp)]))
         with atomic_write(seal, "w") as f:
             f.write(file_checksum(path))
         forced = _FORCED.get()
         if forced is not None:
             forced.add(path)
         return path
+
+    def remove(self, path: str | os.PathLike) -> None:
+        """Delete an entry and its seal (nothing when there is none)."""
+        path = Path(path)
+        path.unlink(missing_ok=True)
+        _seal_path(path).unlink(missing_ok=True)
 
     def get_or_build(
         self,

@@ -2,8 +2,10 @@
 
 Outputs in the Hydra run directory: ``metrics.json`` (one flat record), ``frames.csv`` (one row per
 frame), ``prediction.h5``, ``drape.rrd`` (unless ``viz=none``), ``export/`` (with ``export=usd|obj|pc2``:
-drapebench.export), ``config.yaml`` (resolved) and ``env.json`` (commit, package versions, device,
-threads), and ``losses.csv`` for a learned method (drapebench.train). Every file is written atomically.
+drapebench.export), ``config.yaml`` (resolved, written first: it says whose folder it is) and ``env.json``
+(commit, package versions, device, threads), and ``losses.csv`` for a learned method (drapebench.train). Every
+file is written atomically. A folder that holds another run's results is refused; an earlier run of the same
+config is cleared (logged).
 """
 
 from __future__ import annotations
@@ -11,6 +13,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+import shutil
 import time
 from functools import cache, partial
 from pathlib import Path
@@ -191,12 +194,41 @@ def _reference(cfg: DictConfig, garment, seq, body, material):
     return rec.vertices.to(garment.vertices.dtype)
 
 
+RUN_FILES = ("metrics.json", "failed.json", "frames.csv", "prediction.h5", "drape.rrd", "losses.csv", "evaluations.csv",
+             "losses.png", "export", "env.json", "config.yaml")  # what a run writes into its folder (losses.png: the report's; export/: a folder)
+
+
+class RunFolderInUse(ValueError):
+    """The run folder holds another run's results; nothing was changed in it."""
+
+
+def claim_run_dir(out: Path, config: str) -> None:
+    """Make ``out`` the folder of the run whose resolved config (YAML) is ``config``, and write it there as
+    ``config.yaml``. Files of :data:`RUN_FILES` that an earlier run of the same config left (or an earlier
+    run that wrote no result) are removed, and the log says which; a folder whose files belong to another
+    run, or to no run that says so, raises :class:`RunFolderInUse` naming them and the fix."""
+    present = [n for n in RUN_FILES if (out / n).exists()]
+    earlier = (out / "config.yaml").read_text() if "config.yaml" in present else None
+    results = [n for n in present if n not in ("config.yaml", "env.json")]
+    if results and earlier != config:
+        whose = "another run (its config.yaml differs)" if earlier is not None else "no run of this config (there is no config.yaml)"
+        raise RunFolderInUse(f"run folder {out} holds results of {whose}: {', '.join(results)}; nothing was changed. Run "
+                             "into a new folder (hydra.run.dir=..., or leave it to Hydra's dated folders), or move those files away")  # fmt: skip
+    if present:
+        for name in present:
+            shutil.rmtree(out / name) if (out / name).is_dir() else (out / name).unlink()
+        log.warning("run folder %s held files of an earlier run of this config (%s); removed them", out, ", ".join(present))
+    with atomic_write(out / "config.yaml", "w") as f:
+        f.write(config)
+
+
 def run(cfg: DictConfig, out_dir: str | Path | None = None) -> dict:
     """Run one experiment described by ``cfg``; writes the run's files into ``out_dir`` (default: the
     Hydra run directory) and returns the flat metrics record. When the method fails on the scene
     (:class:`drapebench.errors.DrapeFailed`) and ``cfg.on_failure`` is "record", writes ``failed.json``
     instead of ``metrics.json`` and returns that record (``status`` "failed"). Raises ValueError for a
-    config key nothing reads (:func:`drapebench.schema.check_keys`)."""
+    config key nothing reads (:func:`drapebench.schema.check_keys`), and :class:`RunFolderInUse` when
+    ``out_dir`` holds another run's results (:func:`claim_run_dir`)."""
     check_keys(cfg)
     if out_dir is None:
         from hydra.core.hydra_config import HydraConfig
@@ -204,7 +236,7 @@ def run(cfg: DictConfig, out_dir: str | Path | None = None) -> dict:
         out_dir = HydraConfig.get().runtime.output_dir
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "failed.json").unlink(missing_ok=True)
+    claim_run_dir(out, OmegaConf.to_yaml(cfg, resolve=True))
     try:
         with forcing(bool(cfg.force)):
             return _run(cfg, out)
@@ -247,6 +279,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     from drapebench.body.motion_file import sequence_from_config
     from drapebench.data import H5Sequences, TrainData
     from drapebench.garments import garment_from_config
+    from drapebench.metrics import check_near_origin
     from drapebench.physics import Material
 
     t_start = time.perf_counter()
@@ -258,7 +291,6 @@ def _run(cfg: DictConfig, out: Path) -> dict:
         from drapebench.export import require_usd
 
         require_usd()  # before the drape, not after it
-    (out / "metrics.json").unlink(missing_ok=True)  # a rerun into the same folder is incomplete until it ends
     torch.set_num_threads(job_threads(cfg))
     torch.manual_seed(int(cfg.seed))
     method_cls = _method_class(cfg)  # fail fast on an unknown method
@@ -269,6 +301,8 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     material = Material.from_config(OmegaConf.to_container(cfg.material, resolve=True))
     m = cfg.motion
     seq = sequence_from_config(OmegaConf.to_container(m, resolve=True), body)
+    if dtype != torch.float64 or cfg.reference.solver is not None:  # refused before any drape (the simulator is float32)
+        check_near_origin(seq.trans, "motion's root")
     garment = garment_from_config(OmegaConf.to_container(cfg.garment, resolve=True), body, seq.betas).in_dtype(dtype)
     stages["scene_s"] = time.perf_counter() - t
     log.info("scene: %s (%d vertices) on %s, %s (%d frames) in %.1f s", garment.kind, garment.n_vertices, body.name, seq.name,
@@ -324,8 +358,6 @@ def _run(cfg: DictConfig, out: Path) -> dict:
         log.info("exported the drape (%s): %d file(s) in %s", export, len(paths), paths[0].parent)
     with atomic_write(out / "frames.csv", "w") as f:
         frames.to_csv(f, index=False)
-    with atomic_write(out / "config.yaml", "w") as f:
-        f.write(OmegaConf.to_yaml(cfg, resolve=True))
     write_json(out / "env.json", environment(cfg.device))
     if viz == "rerun":
         from drapebench.geometry.sdf import inside_body

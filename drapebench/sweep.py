@@ -31,7 +31,8 @@ class SweepSummary(Callback):
         from hydra.core.utils import JobStatus
 
         out = Path(job_return.hydra_cfg.hydra.runtime.output_dir) if job_return.hydra_cfg else None
-        if job_return.status == JobStatus.FAILED and out is not None and out.is_dir() and not (out / "failed.json").exists():
+        refused = type(job_return._return_value).__name__ == "RunFolderInUse"  # the folder is another run's: left as it is
+        if job_return.status == JobStatus.FAILED and out is not None and out.is_dir() and not (out / "failed.json").exists() and not refused:
             from drapebench.cache import write_json
             from drapebench.experiment import failure_record
 

@@ -17,7 +17,7 @@ import pytest
 import torch
 from hydra import compose, initialize_config_dir
 
-from drapebench.body import load_body, make_sequence
+from drapebench.body import BodySequence, load_body, make_sequence
 from drapebench.body.motion_file import load_motion, sequence_from_config
 from drapebench.cache import Cache
 from drapebench.experiment import run, warn_untrained_shape
@@ -158,6 +158,40 @@ def test_a_bad_motion_file_fails_naming_the_problem(arrays, message, tmp_path, k
         load_motion(tmp_path / "m.npz", body_lowres)
 
 
+@pytest.mark.parametrize(
+    "arrays, message",
+    [
+        (lambda p, t: {"poses": np.zeros((0, 22, 3)), "fps": 30}, r"m.npz: poses is empty \(shape \(0, 22, 3\)\); give \(T, J, 3\)"),
+        (lambda p, t: {"poses": np.ones(p.shape, dtype=bool), "fps": 30}, r"m.npz: poses holds booleans \(bool\), not numbers; give"),
+        (lambda p, t: {"poses": np.full(p.shape, "0.1"), "fps": 30}, r"m.npz: poses holds text \(<U3\), not numbers"),
+        (lambda p, t: {"poses": p, "trans": np.zeros((0, 3)), "fps": 30}, r"m.npz: trans is empty .*or leave trans out"),
+        (lambda p, t: {"poses": p, "trans": t.astype(bool), "fps": 30}, r"m.npz: trans holds booleans"),
+        (lambda p, t: {"poses": p, "fps": np.array([])}, r"m.npz: fps is empty .*e.g. fps=30"),
+        (lambda p, t: {"poses": p, "fps": "thirty"}, r"m.npz: fps holds text .*e.g. fps=30"),
+        (lambda p, t: {"poses": p, "fps": True}, r"m.npz: fps holds booleans"),
+        (lambda p, t: {"poses": p, "fps": [30, 60]}, r"m.npz: fps holds 2 values"),
+        (lambda p, t: {"poses": p, "fps": np.inf}, r"fps must be > 0 and finite .*got inf"),
+        (lambda p, t: {"poses": p, "fps": 30, "betas": np.array([], dtype=np.float32)}, r"m.npz: betas is empty .*leave betas out"),
+        (lambda p, t: {"poses": p, "fps": 30, "betas": np.array(["tall"])}, r"m.npz: betas holds text"),
+        (lambda p, t: {"poses": p, "fps": 30, "betas": np.array([True, False])}, r"m.npz: betas holds booleans"),
+        (lambda p, t: {"poses": p, "fps": 30, "betas": np.array([0.0, 300.0])}, r"m.npz: betas: body shape b1=300 is outside \+-5"),
+        (lambda p, t: {"poses": p, "trans": t + [0.0, 0.0, 1000.0], "fps": 30}, r"first frame's root is 1000 m above the rest pose"),
+    ],
+)
+def test_a_motion_file_with_empty_text_or_boolean_arrays_names_the_file_the_key_and_the_fix(arrays, message, tmp_path, kick, body_lowres):
+    np.savez(tmp_path / "m.npz", **arrays(kick.poses.numpy(), kick.trans.numpy()))
+    with pytest.raises(ValueError, match=message):
+        load_motion(tmp_path / "m.npz", body_lowres)
+
+
+def test_a_motion_file_far_from_the_origin_is_moved_to_start_above_it(tmp_path, kick, body_lowres, caplog):
+    np.savez(tmp_path / "far.npz", poses=kick.poses.numpy(), trans=kick.trans.numpy().astype(np.float64) + [1.0e4, -2.5e4, 0.0], fps=30)
+    with caplog.at_level(logging.INFO, logger="drapebench"):
+        seq = load_motion(tmp_path / "far.npz", body_lowres, transition=3)
+    assert "the root starts at x=1e+04, y=-2.5e+04 m; the motion is moved to start above the origin" in caplog.text
+    assert torch.allclose(seq.trans[3:], kick.trans - kick.trans[:1] * torch.tensor([1.0, 1.0, 0.0]), atol=1e-6)  # not 1 mm apart
+
+
 def test_unreadable_or_missing_motion_files(tmp_path, body_lowres):
     (tmp_path / "cut.npz").write_bytes(b"PK\x03\x04 truncated")
     with pytest.raises(ValueError, match="cannot be read as npz"):
@@ -231,6 +265,79 @@ def test_bad_motion_settings_fail(motion, message, body_lowres):
     m = {"name": "walk", "n_frames": 10, "fps": 30.0, "transition": 2, "seed": 0, "betas": None, "params": {}, **motion}
     with pytest.raises(ValueError, match=message):
         sequence_from_config(m, body_lowres)
+
+
+def test_a_body_shape_beyond_five_standard_deviations_is_refused_before_anything_is_built(body_lowres, monkeypatch, kick):
+    import drapebench.garments.factory as factory
+    from drapebench.body.model import MAX_ABS_BETA, BodyShapeOutOfRange
+
+    def no_build(*args, **kwargs):
+        raise AssertionError("the garment was built on an absurd body shape")
+
+    monkeypatch.setattr(factory, "_build", no_build)
+    monkeypatch.setattr(factory, "signed_distance_grid", no_build)
+    with pytest.raises(BodyShapeOutOfRange, match=r"body shape b1=-400 is outside \+-5 standard deviations.*e.g. motion.betas="):
+        make_garment("skirt", body_lowres, betas=[0.0, -400.0])
+    with pytest.raises(BodyShapeOutOfRange, match="b0=6"):
+        garment_from_config({"kind": "tshirt", "betas": "motion", "params": {}}, body_lowres, [6.0])
+    m = {"name": "walk", "n_frames": 4, "fps": 30.0, "transition": 0, "seed": 0, "betas": [0.0, 0.0, 1e3], "params": {}}
+    with pytest.raises(BodyShapeOutOfRange, match="b2=1000"):
+        sequence_from_config(m, body_lowres)
+    with pytest.raises(BodyShapeOutOfRange, match=r"b3=-5.5"):
+        body_lowres.forward(torch.tensor([[0.0, 0.0, 0.0, -5.5]]), kick.poses[:1])
+    assert body_lowres.full_betas([MAX_ABS_BETA, -MAX_ABS_BETA]).abs().max() == MAX_ABS_BETA  # the bound itself is a body
+
+
+def test_at_the_shape_bound_the_body_is_still_a_human_body(body_lowres):
+    """+-5 standard deviations (MAX_ABS_BETA) of the first component: 1.2-2.2 m tall, hardly a face folded over."""
+    from drapebench.body.model import MAX_ABS_BETA
+
+    F = body_lowres.faces
+
+    def normals(v):
+        return torch.cross(v[F[:, 1]] - v[F[:, 0]], v[F[:, 2]] - v[F[:, 0]], dim=-1)
+
+    rest = normals(body_lowres.v_template)
+    for b0 in (-MAX_ABS_BETA, MAX_ABS_BETA):
+        v = body_lowres.shaped(torch.tensor([[b0]]))[0][0]
+        height = float(v[:, 2].max() - v[:, 2].min())
+        folded = float(((normals(v) * rest).sum(-1) <= 0).float().mean())
+        assert 1.2 < height < 2.2 and folded < 0.01, (b0, height, folded)
+
+
+@pytest.mark.parametrize("key", ["motion.seed", "garment.seed", "train.seed", "data.seed"])
+def test_a_negative_seed_is_named(key, body_lowres):
+    from drapebench.data.reference_set import ReferenceSetSpec
+    from drapebench.train import train_config
+
+    with pytest.raises(ValueError, match=rf"{key} must be >= 0 \(it seeds numpy's generator\), got -1"):
+        if key == "motion.seed":
+            sequence_from_config({"name": "walk", "n_frames": 4, "fps": 30.0, "transition": 0, "seed": -1, "params": {}}, body_lowres)
+        elif key == "garment.seed":
+            make_garment("skirt", body_lowres, seed=-1)
+        elif key == "train.seed":
+            train_config({"seed": -1})
+        else:
+            ReferenceSetSpec(seed=-1)
+
+
+@pytest.mark.parametrize("fps", [float("inf"), float("nan"), -30.0])
+def test_a_non_finite_or_negative_fps_is_named_as_the_frame_rate(fps, body_lowres):
+    m = {"name": "walk", "n_frames": 4, "fps": fps, "transition": 2, "seed": 0, "betas": None, "params": {}}
+    with pytest.raises(ValueError, match=r"fps must be positive and finite, got .*e.g. motion.fps=30"):
+        sequence_from_config(m, body_lowres)
+    with pytest.raises(ValueError, match="fps must be a finite number of frames per second > 0"):
+        BodySequence("s", "walk", torch.zeros(10), torch.zeros(2, 22, 3), torch.zeros(2, 3), fps=fps)
+
+
+def test_a_tiny_fps_that_sends_the_root_kilometres_away_is_refused_before_the_drape(tmp_path, monkeypatch):
+    import methods.lbs.method as lbs
+    from drapebench.metrics import FarFromOrigin
+
+    monkeypatch.setattr(lbs.LBSMethod, "drape", lambda *a: pytest.fail("draped a scene float32 cannot measure"))
+    cfg = _compose(["body=anny_lowres", "viz=none", "motion.fps=0.001", "motion.n_frames=4", "motion.transition=0"])
+    with pytest.raises(FarFromOrigin, match=r"the motion's root lies up to \d+ m from the origin, .*dtype=float64"):
+        run(cfg, tmp_path / "out")
 
 
 @pytest.mark.parametrize("key", ["thickness", "bulk_density", "young", "bending_multiplier", "dt"])

@@ -1,6 +1,7 @@
 """End-to-end runs of run.py through Hydra (low-resolution body, short sequences)."""
 
 import json
+import logging
 import math
 import os
 import subprocess
@@ -209,11 +210,36 @@ def test_interrupted_run_leaves_no_complete_looking_file(tmp_path, monkeypatch):
     cfg = _compose(FAST)
     out = tmp_path / "run"
     out.mkdir()
-    (out / "metrics.json").write_text("{}")  # left by an earlier run into the same folder
+    (out / "config.yaml").write_text(OmegaConf.to_yaml(cfg, resolve=True))  # an earlier run of this config ...
+    (out / "metrics.json").write_text("{}")  # ... left its result in the same folder
     with pytest.raises(KeyboardInterrupt):
         run(cfg, out)
     assert not (out / "metrics.json").exists() and not (out / "drape.rrd").exists()
     assert not list(out.glob(".*.tmp"))
+
+
+def test_a_run_into_a_folder_with_another_runs_results_is_refused_and_the_same_run_clears_it(tmp_path, caplog):
+    from drapebench.experiment import RunFolderInUse, run
+
+    cfg, _ = _fresh()
+    out = tmp_path / "run"
+    run(cfg, out)
+    before = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+    assert {"metrics.json", "frames.csv", "prediction.h5", "config.yaml"} <= set(before)
+    other = _compose([*FAST, "viz=rerun", f"motion.seed={cfg.motion.seed}"])  # its drape.rrd would sit beside the other's results
+    with pytest.raises(RunFolderInUse, match=r"holds results of another run \(its config.yaml differs\): metrics.json, frames.csv, prediction.h5.*hydra.run.dir"):
+        run(other, out)
+    assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == before  # nothing lost or added
+    with caplog.at_level(logging.WARNING, logger="drapebench"):
+        record = run(cfg, out)  # the same config again: its earlier files are replaced, and the log says so
+    assert "held files of an earlier run of this config (metrics.json, frames.csv" in caplog.text
+    assert json.loads((out / "metrics.json").read_text()) == record
+    stray = tmp_path / "stray"
+    stray.mkdir()
+    (stray / "losses.csv").write_text("mine")  # a file no run claims: refused, kept
+    with pytest.raises(RunFolderInUse, match="no run of this config"):
+        run(cfg, stray)
+    assert (stray / "losses.csv").read_text() == "mine"
 
 
 def test_reference_adds_vertex_error(tmp_path, monkeypatch):

@@ -172,3 +172,42 @@ def test_collision_metrics_equal_whole_body_queries_when_the_garment_moves_or_th
         assert summary["eps_c"] == 0.0
     if shift[0] > 0:
         assert summary["eps_c"] > 1.0  # part of the garment is moved into the body
+
+
+@pytest.mark.parametrize("offset", [(1.0e4, 0.0, 0.0), (0.0, -1.0e4, 1.0e4)])
+def test_every_metric_is_translation_invariant_ten_kilometres_from_the_origin(body_lowres, offset):
+    """A drape and its body moved 10 km (float64 positions, a root translation float32 holds exactly) give
+    every metric of the drape at the origin to float32's resolution at the body's scale; energy_gravity keeps
+    the world's datum, so it moves by exactly -M g . offset."""
+    from drapebench.body import make_sequence
+    from drapebench.body.lbs import lbs
+    from drapebench.garments import make_garment
+    from drapebench.physics import Material
+
+    g = make_garment("tshirt", body_lowres)
+    dance = make_sequence("dance", 8, seed=4, transition=2)
+    seq = BodySequence("here", "dance", dance.betas, dance.poses, torch.zeros_like(dance.trans), n_transition=2)
+    far = BodySequence("far", "dance", dance.betas, dance.poses, torch.tensor(offset).expand(seq.n_frames, 3), n_transition=2)
+    idx = torch.cdist(g.vertices, body_lowres.v_template).argmin(1)
+    x = lbs(g.vertices.double(), body_lowres.weights[idx].double(), seq.transforms(body_lowres).double())
+    x = x + torch.tensor([0.08, 0.0, 0.0], dtype=torch.float64)  # 8 cm sideways: part of it inside the arm
+    ref = x + 0.002
+    here, frames = evaluate(g, seq, body_lowres, x, reference=ref)
+    moved = torch.tensor(offset, dtype=torch.float64)
+    there, far_frames = evaluate(g, far, body_lowres, x + moved, reference=ref + moved)
+    assert here["eps_e"] > 1.0 and here["eps_c"] > 0.0 and here["penetration_mm"] > 0.0  # something to measure
+    lift = -float(g.topology.vertex_masses(Material()).double().sum()) * float(torch.tensor(Material().gravity).double() @ moved)
+    for key, value in here.items():
+        expected = value + lift if key == "energy_gravity" else value
+        assert there[key] == pytest.approx(expected, rel=1e-5, abs=1e-9, nan_ok=True), key
+    assert np.allclose(far_frames["eps_e"], frames["eps_e"], rtol=1e-5)
+
+
+def test_float32_positions_too_far_from_the_origin_to_measure_are_refused(sphere_scene):
+    from drapebench.metrics import MAX_FLOAT32_DISTANCE, FarFromOrigin
+
+    body, garment, seq = sphere_scene
+    pred = garment.vertices[None].repeat(seq.n_frames, 1, 1) + 2 * MAX_FLOAT32_DISTANCE
+    with pytest.raises(FarFromOrigin, match=r"float32 positions are .* mm apart.*dtype=float64"):
+        evaluate(garment, seq, body, pred)
+    evaluate(garment, seq, body, pred.double() - 2 * MAX_FLOAT32_DISTANCE, energies=False)  # float64 is measured anywhere

@@ -81,7 +81,9 @@ def beta_bound(name_or_spec) -> np.ndarray:
 
 
 def sequence_plan(spec: DatasetSpec) -> list[tuple[str, int, int, np.ndarray]]:
-    """(motion, index, seed, betas (n_betas,) float32) per sequence, deterministic in ``spec.seed``."""
+    """(motion, index, seed, betas (n_betas,) float32) per sequence, deterministic in ``spec.seed`` (>= 0)."""
+    if spec.seed < 0:
+        raise ValueError(f"a dataset's seed must be >= 0 (it seeds numpy's generator), got {spec.seed}; e.g. data.seed=40000")
     rng = np.random.default_rng(spec.seed)
     plan = []
     for motion in spec.motions:

@@ -23,6 +23,15 @@ from drapebench.body.lbs import axis_angle_to_matrix, lbs
 BODY_DIR = Path(__file__).resolve().parents[2] / "data" / "bodies"
 SHIPPED_BODIES = ("anny", "anny_lowres")
 REQUIRED_KEYS = ("v_template", "shapedirs", "J_regressor", "weights", "parents", "faces")
+# Body shapes are betas in standard deviations of an adult population. Up to |beta| = 5 the shipped
+# bodies are still human (1.25 / 2.16 m tall at b0 = -5 / +5, at most 0.22 % of the faces folded over); beyond
+# it the linear shape space extrapolates into no body at all (b0 = -10: 0.80 m tall, 8 % of the faces
+# folded). Measured in data/bodies/PROVENANCE.md; BodyModel refuses larger betas (BodyShapeOutOfRange).
+MAX_ABS_BETA = 5.0
+
+
+class BodyShapeOutOfRange(ValueError):
+    """Shape coefficients beyond +-MAX_ABS_BETA standard deviations, where the shape space is no human body."""
 
 
 @dataclass
@@ -132,7 +141,8 @@ class BodyModel(torch.nn.Module):
     def full_betas(self, betas=None, note: bool = False) -> torch.Tensor:
         """The one rule for shape coefficients: (..., S') betas (None = mean) -> (..., S) float on the body's
         dtype/device, S = :attr:`n_betas`. Fewer than S are zero-padded (logged when ``note``); more, or NaN/Inf,
-        raise ValueError naming the count and the fix."""
+        raise ValueError naming the count and the fix; any beyond +-:data:`MAX_ABS_BETA` standard deviations
+        raise :class:`BodyShapeOutOfRange` (before anything is built on them)."""
         if betas is None:
             return torch.zeros(self.n_betas, dtype=self.dtype, device=self.device)
         betas = torch.as_tensor(betas, dtype=self.dtype, device=self.device)
@@ -141,6 +151,7 @@ class BodyModel(torch.nn.Module):
             raise ValueError(f"{got} betas given; body {self.name} has {self.n_betas} shape coefficients: give at most "
                              f"{self.n_betas} (fewer are zero-padded), e.g. motion.betas=[1.0,-0.5]")  # fmt: skip
         _check_finite(betas, "betas")
+        _check_shape_range(betas, self.name)
         n = betas.shape[-1]
         if n < self.n_betas:
             if note and n:
@@ -260,6 +271,7 @@ class BodyModel(torch.nn.Module):
                 f"betas has shape {tuple(betas.shape)}; {self.name} expects (B, S) with S <= {self.n_betas}"
             )
         _check_finite(betas, "betas")
+        _check_shape_range(betas, self.name)
         return betas
 
     def extra_repr(self) -> str:
@@ -270,6 +282,22 @@ def _check_finite(t: torch.Tensor, what: str) -> None:
     if not torch.isfinite(t).all():
         bad = (~torch.isfinite(t)).nonzero()[:5].tolist()
         raise ValueError(f"{what} contains NaN or Inf (first bad indices {bad}); clean the input first")
+
+
+def _check_shape_range(betas: torch.Tensor, body: str) -> None:
+    """Raise :class:`BodyShapeOutOfRange` naming the components of betas (..., S) beyond +-MAX_ABS_BETA."""
+    peak = betas.detach().abs().reshape(-1, betas.shape[-1]).amax(0) if betas.numel() else betas.new_zeros(0)
+    over = torch.nonzero(peak > MAX_ABS_BETA).flatten().tolist()
+    if over:
+        values = betas.detach().reshape(-1, betas.shape[-1])
+        worst = values.gather(0, values.abs().argmax(0, keepdim=True))[0]
+        shown = ", ".join(f"b{k}={float(worst[k]):g}" for k in over)
+        raise BodyShapeOutOfRange(
+            f"body shape {shown} is outside +-{MAX_ABS_BETA:g} standard deviations, where {body}'s shape space stops "
+            f"being a human body (anny at b0 = -5 / +5 is 1.25 / 2.16 m tall; beyond, the shape space extrapolates into "
+            f"ever smaller or larger meshes with folded faces: data/bodies/PROVENANCE.md). Give betas within +-{MAX_ABS_BETA:g}, "
+            "e.g. motion.betas=[2.0,-1.0]"
+        )
 
 
 def _validate_arrays(arrays: dict, source: str) -> dict:

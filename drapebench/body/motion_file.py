@@ -10,6 +10,8 @@ child; optional ``trans`` (T, 3) root translation in metres (default zero), ``be
 from __future__ import annotations
 
 import contextlib
+import logging
+import math
 import pickle
 import zipfile
 import zlib
@@ -24,6 +26,28 @@ from drapebench.body.motions import smoothstep
 from drapebench.body.sequence import DEFAULT_TRANSITION, BodySequence, make_sequence
 
 MAX_ROOT_SPEED = 15.0  # m/s; a faster root is taken for a translation in centimetres or millimetres
+FIXES = {
+    "poses": "give (T, J, 3) or (T, 3J) axis-angle rotations in radians, as float numbers",
+    "trans": "give (T, 3) root translations in metres, as float numbers, or leave trans out (no translation)",
+    "betas": "give (S,) body shape coefficients as float numbers, or leave betas out (the mean body)",
+    "fps": "give the frame rate as one number, e.g. fps=30 in the file or motion.fps=30",
+}
+log = logging.getLogger("drapebench")
+
+
+def numeric_array(value, key: str, source: str) -> np.ndarray:
+    """``value`` (the file's array ``key``) as float64, or a ValueError naming the file, the key and the fix when
+    it is empty or holds no numbers: text, booleans (True would be read as 1), complex or structured values."""
+    a = np.asarray(value)
+    fix = FIXES[key]
+    if a.dtype.kind == "b":
+        raise ValueError(f"{source}: {key} holds booleans ({a.dtype}), not numbers; {fix}")
+    if a.dtype.kind not in "iuf":
+        what = {"U": "text", "S": "bytes (text)", "O": "Python objects", "c": "complex numbers"}.get(a.dtype.kind, f"{a.dtype} values")
+        raise ValueError(f"{source}: {key} holds {what} ({a.dtype}), not numbers; {fix}")
+    if a.size == 0:
+        raise ValueError(f"{source}: {key} is empty (shape {a.shape}); {fix}")
+    return a.astype(np.float64)
 
 
 def read_motion_file(path: str | Path, needs: str = "poses (T, J, 3) axis-angle [, trans (T, 3), betas (S,), fps]") -> dict:
@@ -72,7 +96,7 @@ def check_poses(poses: np.ndarray, body, source: str) -> np.ndarray:
     """(T, J, 3) float32 axis-angle poses checked against ``body``: shape, joint count, radians."""
     names = ", ".join(f"{i} {n}" for i, n in enumerate(body.joint_names))
     J = body.n_joints
-    poses = np.asarray(poses, dtype=np.float64)
+    poses = numeric_array(poses, "poses", source)
     if poses.ndim == 2 and poses.shape[1] % 3 == 0:
         poses = poses.reshape(len(poses), -1, 3)
     if poses.ndim == 4 and poses.shape[-2:] == (3, 3):
@@ -95,28 +119,41 @@ def load_motion(path: str | Path, body, fps: float | None = None, betas=None, n_
 
     ``fps`` overrides the file's; ``betas`` the file's (else the mean shape; :meth:`BodyModel.full_betas`);
     ``n_frames`` keeps the first frames (None: all); ``transition`` frames are prepended that blend from the
-    rest pose (pose 0, trans 0) into the first frame (quintic smoothstep). Raises ValueError naming the
-    problem and the fix (no poses, wrong joint count, degrees, centimetres, fewer than 2 frames, no fps).
+    rest pose (pose 0, trans 0) into the first frame (quintic smoothstep). The motion is moved horizontally
+    (in float64, logged) so that its first frame's root stands above the origin: a horizontal shift changes
+    no metric, and far from the origin float32 could not resolve the garment. Raises ValueError naming the
+    file, the key and the fix (no poses, an empty array, text or booleans, wrong joint count, degrees,
+    centimetres, a root far above or below the rest pose, fewer than 2 frames, no or a non-finite fps).
     """
     path = Path(path)
     d = read_motion_file(path)
     poses = check_poses(d["poses"], body, str(path))
     T = len(poses)
-    trans = np.zeros((T, 3), np.float32) if "trans" not in d else np.asarray(d["trans"], dtype=np.float32)
+    trans = np.zeros((T, 3)) if "trans" not in d else numeric_array(d["trans"], "trans", str(path))
     if trans.shape != (T, 3):
         raise ValueError(f"{path}: trans has shape {trans.shape}; expected ({T}, 3) metres, one row per pose")
+    if not np.isfinite(trans).all():
+        raise ValueError(f"{path}: trans contains NaN or Inf; {FIXES['trans']}")
     if fps is None:
         if "fps" not in d:
             raise ValueError(f"{path} has no fps; give it in the file or as motion.fps=30")
-        fps = float(np.asarray(d["fps"]).reshape(-1)[0])
-    if not fps > 0:
-        raise ValueError(f"fps must be > 0 frames per second, got {fps} (motion.fps or the file's fps)")
+        rate = numeric_array(d["fps"], "fps", str(path))
+        if rate.size != 1:
+            raise ValueError(f"{path}: fps holds {rate.size} values; {FIXES['fps']}")
+        fps = float(rate.reshape(-1)[0])
+    if isinstance(fps, bool) or not (math.isfinite(float(fps)) and float(fps) > 0):
+        raise ValueError(f"fps must be > 0 and finite (frames per second), got {fps} (motion.fps or {path}'s fps); e.g. motion.fps=30")
+    fps = float(fps)
     if n_frames is not None:
         if not 2 <= n_frames <= T:
             raise ValueError(f"motion.n_frames={n_frames}: {path} has {T} frames; give 2..{T} or null for all")
         poses, trans = poses[:n_frames], trans[:n_frames]
+    start = trans[0, :2].copy()
+    if start.any():
+        trans[:, :2] -= start
+        log.info("%s: the root starts at x=%.4g, y=%.4g m; the motion is moved to start above the origin", path, *start)
     if betas is None and "betas" in d:
-        betas = np.asarray(d["betas"], dtype=np.float32).reshape(-1)
+        betas = numeric_array(d["betas"], "betas", str(path)).reshape(-1)
     return motion_sequence(poses, trans, fps, body, betas, transition, name or path.stem, "file", {"source": str(path)})
 
 
@@ -125,7 +162,8 @@ def motion_sequence(poses: np.ndarray, trans: np.ndarray, fps: float, body, beta
     """A test :class:`BodySequence` from poses (T, J, 3) axis-angle in the body's joint order and trans (T, 3) m at
     ``fps`` Hz, with ``transition`` frames prepended that blend from the rest pose (pose 0, trans 0) into the first
     frame (quintic smoothstep); betas padded by :meth:`BodyModel.full_betas` (None: mean shape). ``params["source"]``
-    names the file in errors: fewer than 2 frames, a root faster than :data:`MAX_ROOT_SPEED` (centimetres)."""
+    names the file in errors: fewer than 2 frames, a root faster than :data:`MAX_ROOT_SPEED` (centimetres), a first
+    frame whose root the transition would have to lift faster than that, betas out of the body's range."""
     source = params["source"]
     if len(poses) < 2:
         raise ValueError(f"{source} has {len(poses)} frame(s); a motion needs at least 2")
@@ -134,11 +172,20 @@ def motion_sequence(poses: np.ndarray, trans: np.ndarray, fps: float, body, beta
         raise ValueError(f"{source}: the root moves at up to {speed:.0f} m/s; trans must be metres (centimetres? divide by 100)")
     if transition < 0:
         raise ValueError(f"motion.transition must be >= 0 frames, got {transition}")
+    rise = abs(trans[0, 2]) * fps * 1.875 / max(transition, 1)  # the quintic blend's peak speed
+    if transition and rise > MAX_ROOT_SPEED:
+        raise ValueError(f"{source}: the first frame's root is {trans[0, 2]:.4g} m above the rest pose's; the {transition} "
+                         f"transition frames would move it at {rise:.0f} m/s. trans z is relative to the rest pose, which "
+                         "stands at trans 0: subtract the floor's height (or give trans in metres)")  # fmt: skip
     s = smoothstep(np.arange(transition) / max(transition, 1))[:, None]
     poses = np.concatenate([s[..., None] * poses[:1], poses]).astype(np.float32)
     trans = np.concatenate([s * trans[:1], trans]).astype(np.float32)
+    try:
+        full = body.full_betas(betas, note=True).float().cpu()
+    except ValueError as err:
+        raise type(err)(f"{source}: betas: {err}") from None
     return BodySequence(
-        name=name, motion=motion, betas=body.full_betas(betas, note=True).float().cpu(), poses=torch.from_numpy(poses),
+        name=name, motion=motion, betas=full, poses=torch.from_numpy(poses),
         trans=torch.from_numpy(trans), fps=fps, split="test", n_transition=transition, params=params,
     )  # fmt: skip
 

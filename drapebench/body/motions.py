@@ -294,8 +294,10 @@ def generate(motion: str, n_frames: int, fps: float, seed: int, transition: int 
     _check_motion(motion)
     if n_frames < 1 or transition < 0:
         raise ValueError(f"n_frames must be >= 1 and transition >= 0, got {n_frames}, {transition} (motion.n_frames, motion.transition)")
-    if not fps > 0:
-        raise ValueError(f"fps must be positive, got {fps}: give frames per second, e.g. motion.fps=30")
+    if not (fps > 0 and np.isfinite(fps)):
+        raise ValueError(f"fps must be positive and finite, got {fps}: give frames per second, e.g. motion.fps=30")
+    if seed < 0:
+        raise ValueError(f"motion.seed must be >= 0 (it seeds numpy's generator), got {seed}; e.g. motion.seed=1000")
     builder, defaults = _SPECS[motion]
     unknown = set(params) - set(defaults)
     if unknown:

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import math
+import numbers
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -15,6 +17,8 @@ from drapebench.cache import atomic_write
 from drapebench.geometry.ops import vertex_normals
 
 DEFAULT_TRANSITION = 15  # frames (0.5 s at 30 fps) from the rest pose into the motion
+LOCAL_REUSE = 2.0  # m: root translation up to which posed_frames(local=True) reuses the cached world geometry
+#                    (world coordinates under 4 m: float32 rounds them as finely as the body's own scale)
 
 
 def _key(kind: str, body: BodyModel) -> tuple:
@@ -60,6 +64,8 @@ class BodySequence:
         for key in ("betas", "poses", "trans"):
             if not torch.isfinite(getattr(self, key)).all():
                 raise ValueError(f"{self.name}: {key} contains NaN or Inf")
+        if isinstance(self.fps, bool) or not isinstance(self.fps, numbers.Real) or not (math.isfinite(self.fps) and self.fps > 0):
+            raise ValueError(f"{self.name}: fps must be a finite number of frames per second > 0, got {self.fps!r}; e.g. fps=30")
         if not 0 <= self.n_transition <= self.poses.shape[0]:
             raise ValueError(f"{self.name}: n_transition {self.n_transition} outside [0, {self.poses.shape[0]}]")
 
@@ -117,13 +123,24 @@ class BodySequence:
             self._cache[key] = vertex_normals(self.vertices(body), body.faces)
         return self._cache[key]
 
-    def posed_frames(self, body: BodyModel, start: int, stop: int) -> tuple[torch.Tensor, torch.Tensor]:
+    def posed_frames(self, body: BodyModel, start: int, stop: int, local: bool = False) -> tuple[torch.Tensor, torch.Tensor]:
         """Posed vertices and unit normals (stop-start, V, 3) of frames [start, stop): slices of the
         cached whole-sequence geometry when this sequence holds it, else posed for those frames only
-        and not cached (memory bounded by the chunk on long sequences)."""
-        if _key("out", body) in self._cache:
-            return self.vertices(body)[start:stop], self.vertex_normals(body)[start:stop]
+        and not cached (memory bounded by the chunk on long sequences).
+
+        ``local``: each frame in its own local frame, its root translation ``trans[t]`` left out (world =
+        local + trans[t]), so the body keeps float32's resolution at its own scale however far it travels:
+        the cached geometry minus trans (in float64) while the root stays within ``LOCAL_REUSE`` m of the
+        origin, else posed without the translation."""
+        cached = _key("out", body) in self._cache
+        if cached and (not local or float(self.trans[start:stop].abs().max()) <= LOCAL_REUSE):
+            v, n = self.vertices(body)[start:stop], self.vertex_normals(body)[start:stop]
+            if local:
+                v = (v.double() - self.trans[start:stop, None].to(v.device, torch.float64)).to(v.dtype)
+            return v, n
         part = self.slice(start, stop)
+        if local:
+            part.trans = torch.zeros_like(part.trans)  # a fresh slice: nothing posed or cached yet
         return part.vertices(body), part.vertex_normals(body)
 
     def joints(self, body: BodyModel) -> torch.Tensor:

@@ -72,6 +72,8 @@ class ReferenceSetSpec:
         if int(self.per_motion) < 1 or int(self.n_frames) < 1 or int(self.n_jobs) < 1:
             raise ValueError(f"reference set {self.name!r} needs per_motion, n_frames and n_jobs >= 1, got "
                              f"{self.per_motion}, {self.n_frames}, {self.n_jobs}")  # fmt: skip
+        if int(self.seed) < 0:
+            raise ValueError(f"data.seed must be >= 0 (it seeds numpy's generator), got {self.seed}; e.g. data.seed=40000")
 
     @classmethod
     def from_config(cls, cfg) -> "ReferenceSetSpec":

@@ -183,6 +183,8 @@ def garment_params(kind: str, seed: int = 0, **params) -> dict:
     if unknown:
         raise ValueError(f"unknown parameter(s) {sorted(unknown)} for {kind}; valid: {sorted(p)}")
     p.update(params)
+    if seed < 0:
+        raise ValueError(f"garment.seed must be >= 0 (it seeds numpy's generator), got {seed}; e.g. garment.seed=0")
     if not 0.003 <= p["resolution"] <= 0.05:
         raise ValueError(f"resolution {p['resolution']} m is outside [0.003, 0.05]")
     for name in ("ease", "closing"):

@@ -11,18 +11,35 @@ A = E / (1 - nu^2), mu = A (1 - nu) / 2, lambda = A nu, k_bend = A t^3 / 12 x be
 
 from __future__ import annotations
 
+import math
+import numbers
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import yaml
 
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf" / "material"
+# What a cloth can be (field: lowest, highest, unit): generous bounds around the presets (cotton, silk,
+# denim, leather) and HOOD's sampled training ranges (docs/references.md). young up to 1e7 Pa is 140x
+# cotton's; a stiffer sheet is no longer cloth (and its reference drape fails: it cannot bend round the body).
+RANGES = {
+    "thickness": (1e-5, 1e-2, "m"),
+    "bulk_density": (10.0, 3000.0, "kg/m^3"),
+    "young": (1e3, 1e7, "Pa"),
+    "bending_multiplier": (1e-3, 1e4, "-"),
+    "collision_thickness": (0.0, 0.02, "m"),
+    "friction": (0.0, 2.0, "-"),
+    "dt": (1e-4, 1.0, "s"),
+}
+MAX_GRAVITY = 100.0  # m/s^2 (about 10 g)
 
 
 @dataclass(frozen=True)
 class Material:
     """A cloth material (defaults: the GAPS/SNUG cotton, ``docs/references.md``).
 
+    Every value must be finite and within :data:`RANGES` (gravity at most :data:`MAX_GRAVITY` long), else
+    ValueError naming the field, its range and the fix.
     Fields: name; thickness t (m); bulk_density (kg/m^3); young E (Pa); poisson nu (-, in [0, 0.5));
     bending_multiplier (-, ARCSim/GAPS factor on the plate stiffness); collision_thickness eps (m,
     collision penalty margin); friction (-, Coulomb coefficient, used by the reference simulator);
@@ -43,16 +60,30 @@ class Material:
     dt: float = 1.0 / 30.0
 
     def __post_init__(self) -> None:
+        for key in ("thickness", "bulk_density", "young", "poisson", "bending_multiplier", "collision_thickness", "friction", "dt"):
+            value = getattr(self, key)
+            if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
+                raise ValueError(f"Material.{key} must be a finite number, got {value!r} (material.{key}=...; presets: conf/material/)")
         for key in ("thickness", "bulk_density", "young", "bending_multiplier", "dt"):
             if not getattr(self, key) > 0:
                 raise ValueError(f"Material.{key} must be positive, got {getattr(self, key)}")
         if not 0.0 <= self.poisson < 0.5:
             raise ValueError(f"Material.poisson must be in [0, 0.5), got {self.poisson}")
-        if self.collision_thickness < 0 or self.friction < 0:
-            raise ValueError("Material.collision_thickness and friction must be >= 0")
-        object.__setattr__(self, "gravity", tuple(float(g) for g in self.gravity))
-        if len(self.gravity) != 3:
+        for key, (lo, hi, unit) in RANGES.items():
+            if not lo <= getattr(self, key) <= hi:
+                raise ValueError(f"Material.{key} = {getattr(self, key):g} {unit} is outside [{lo:g}, {hi:g}] {unit}, the range of "
+                                 f"cloth (cotton: {Material.__dataclass_fields__[key].default:g}); give a value in it "
+                                 f"(material.{key}=..., presets: conf/material/)")  # fmt: skip
+        try:
+            gravity = tuple(float(g) for g in self.gravity)
+        except (TypeError, ValueError):
+            raise ValueError(f"Material.gravity must be 3 numbers (m/s^2), got {self.gravity!r}") from None
+        if len(gravity) != 3:
             raise ValueError(f"Material.gravity must have 3 components, got {self.gravity}")
+        if not all(math.isfinite(g) for g in gravity) or math.hypot(*gravity) > MAX_GRAVITY:
+            raise ValueError(f"Material.gravity must be finite and at most {MAX_GRAVITY:g} m/s^2 long, got {gravity}; "
+                             "e.g. material.gravity=[0,0,-9.81]")  # fmt: skip
+        object.__setattr__(self, "gravity", gravity)
 
     @property
     def area_density(self) -> float:

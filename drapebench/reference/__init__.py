@@ -8,6 +8,7 @@ simulation actually runs (not for cache hits).
 
 from drapebench.reference.settings import SOLVERS, SimSettings
 from drapebench.reference.simulator import (
+    GarmentInsideBody,
     GarmentLeftBody,
     SimulationDiverged,
     SimulationRecord,
@@ -16,5 +17,5 @@ from drapebench.reference.simulator import (
     simulate_record,
 )
 
-__all__ = ["SOLVERS", "GarmentLeftBody", "SimSettings", "SimulationDiverged", "SimulationRecord", "reference_path", "simulate",
+__all__ = ["SOLVERS", "GarmentInsideBody", "GarmentLeftBody", "SimSettings", "SimulationDiverged", "SimulationRecord", "reference_path", "simulate",
            "simulate_record"]

@@ -22,11 +22,16 @@ an edge stretched past ``MAX_STRETCH``, or an edge with no pinned end held past 
 rest length for ``SNAG_SECONDS`` (the cloth snagged on the body: pinned edges follow the body and are
 left out); :class:`GarmentLeftBody` when the garment's centroid (mean
 vertex) leaves the body's axis-aligned bounding box grown by ``LEAVE_MARGIN`` on every side (it fell
-off) or drops into the lowest ``FEET_BAND`` of the body's height (it slid down to the feet), checked
-after every frame. After a failure the whole simulation is run again with each of
-``settings.retry_substeps`` in turn (a smaller step); every attempt is recorded in the record's
-``stats["attempts"]`` and the cache key stays the requested settings. A cached drape is checked for a
-snag again when it is loaded; one that fails is simulated again.
+off) or drops into the lowest ``FEET_BAND`` of the body's height (it slid down to the feet);
+:class:`GarmentInsideBody` when more than ``INSIDE_SHARE`` of its vertices stay inside the body (the
+eps_c rule) for ``INSIDE_SECONDS`` (a physically impossible drape), all checked after every frame.
+After a failure that a smaller step can cure (NaN, speed, a torn edge, a snag) the whole simulation is
+run again with each of ``settings.retry_substeps`` in turn; a garment that left the body or stayed
+inside it, or one moved to a body shape farther than ``FAR_SHAPE`` from its own, is not retried and the
+error names the likely cause (the pins, the material, ``garment.betas=motion``). Every attempt is
+recorded in the record's ``stats["attempts"]`` and the cache key stays the requested settings. A cached
+drape is checked for a snag and for the garment inside the body again when it is loaded; one that fails
+is simulated again.
 """
 
 from __future__ import annotations
@@ -58,38 +63,79 @@ SNAG_SECONDS = 0.5  # ... for this long (sequence time) means the cloth snagged 
 log = logging.getLogger("drapebench")
 LEAVE_MARGIN = 0.10  # m: a garment centroid this far outside the body's bounding box has fallen off
 FEET_BAND = 0.15  # a garment centroid in this lowest fraction of the body's height has slid down to the feet
+# A drape with more than INSIDE_SHARE of its vertices inside the body for INSIDE_SECONDS is physically impossible.
+# The accepted references of the committed tables have eps_c (share inside, mean +- std over frames) of at most
+# 0.035 +- 0.13 % (vbd) and 0.30 +- 0.61 % (style3d) (reports/*.csv); a too stiff material leaves a third inside.
+INSIDE_SHARE = 0.05
+INSIDE_SECONDS = 0.5
+FAR_SHAPE = 2.0  # std: a garment moved to a body shape farther than this from its own (the range of the training
+#                  data and the tables' shapes) by nearest-vertex transfer is the likely cause of a failure
 
 
 class SimulationDiverged(DrapeFailed):
     """The reference simulation blew up (NaN, runaway speed or torn elements); no drape was cached, only a
     record of the failure, so the same simulation fails at once until ``force=true``.
 
-    Attributes: garment, sequence (names), frame (sequence frame, negative while settling), reason;
-    attempts (substeps and failure of each try, see :func:`simulate_record`) once retries are done.
+    Attributes: garment, sequence (names), frame (sequence frame, negative while settling), reason, cause (the
+    likely cause and what to change, when known; else :meth:`advice`); attempts (substeps and failure of each
+    try, see :func:`simulate_record`) once retries are done. ``smaller_step_helps``: whether the retry ladder
+    (more substeps) can cure this kind of failure.
     """
 
     verb = "diverged"
+    smaller_step_helps = True
 
-    def __init__(self, garment: str, sequence: str, frame: int, n_frames: int, reason: str, settings: SimSettings):
-        self.garment, self.sequence, self.frame, self.reason = garment, sequence, frame, reason
-        self._args = (garment, sequence, frame, n_frames, reason, settings)
+    def __init__(self, garment: str, sequence: str, frame: int, n_frames: int, reason: str, settings: SimSettings,
+                 cause: str | None = None):  # fmt: skip
+        self.garment, self.sequence, self.frame, self.reason, self.cause = garment, sequence, frame, reason, cause
+        self._args = (garment, sequence, frame, n_frames, reason, settings, cause)
         where = f"settling frame {frame + settings.settle_frames} of {settings.settle_frames}" if frame < 0 else \
             f"frame {frame} of {n_frames}"  # fmt: skip
-        super().__init__(
-            f"reference simulation ({settings.solver}) of garment {garment!r} on sequence {sequence!r} {self.verb} at "
-            f"{where}: {reason}. Try more substeps (substeps={2 * settings.substeps}, i.e. a smaller dt), more "
-            f"iterations (iterations={2 * settings.iterations}), a higher sequence fps, or a slower motion; "
-            f"the other solver (solver={'style3d' if settings.solver == 'vbd' else 'vbd'}) may also cope."
-        )
+        super().__init__(f"reference simulation ({settings.solver}) of garment {garment!r} on sequence {sequence!r} {self.verb} "
+                         f"at {where}: {reason}. {cause or self.advice(settings)}")  # fmt: skip
+
+    @staticmethod
+    def advice(settings: SimSettings) -> str:
+        """What to change when nothing more specific is known."""
+        return (f"Try more substeps (substeps={2 * settings.substeps}, i.e. a smaller dt), more iterations "
+                f"(iterations={2 * settings.iterations}), a higher sequence fps, or a slower motion; the other solver "
+                f"(solver={'style3d' if settings.solver == 'vbd' else 'vbd'}) may also cope.")  # fmt: skip
 
     def __reduce__(self):  # rebuilt from its arguments (and attempts): parallel workers send it pickled
         return type(self), self._args, {"attempts": getattr(self, "attempts", None)}
 
 
 class GarmentLeftBody(SimulationDiverged):
-    """The garment left the body (fell off, or slid down to the feet); nothing was cached."""
+    """The garment left the body (fell off, or slid down to the feet); nothing was cached. A smaller step
+    does not hold a garment on the body, so it is not retried."""
 
     verb = "lost the garment"
+    smaller_step_helps = False
+
+    @staticmethod
+    def advice(settings: SimSettings) -> str:
+        if not settings.pins:
+            return "The pins are off (reference.pins=false): nothing holds the garment up; turn them on (not retried)."
+        return ("Its pins do not hold it: a garment=obj needs garment.pins on its waistband or shoulders (the vertices held "
+                "to the body), not the hem; a garment made on another body shape needs garment.betas=motion (not "
+                "retried: more substeps do not help).")  # fmt: skip
+
+
+class GarmentInsideBody(SimulationDiverged):
+    """Too much of the garment stayed inside the body: a physically impossible drape; nothing was cached.
+    A smaller step does not make the cloth follow the body, so it is not retried."""
+
+    verb = "left the garment inside the body"
+    smaller_step_helps = False
+
+    @staticmethod
+    def advice(settings: SimSettings) -> str:
+        return ("The cloth cannot follow the body: the material is the likely cause (a young or bending_multiplier far "
+                "above the presets' makes it too stiff to bend around the body; conf/material/), or a garment made for "
+                "another body shape (garment.betas=motion) (not retried: more substeps do not help).")  # fmt: skip
+
+
+FAILURES = {c.__name__: c for c in (SimulationDiverged, GarmentLeftBody, GarmentInsideBody)}
 
 
 @dataclass
@@ -250,6 +296,40 @@ def find_snag(vertices: np.ndarray, garment, pinned: bool, fps: float) -> tuple[
     return None
 
 
+def inside_share(x: np.ndarray, body_points: np.ndarray, body_faces: torch.Tensor) -> float:
+    """Share (0..1) of the garment's vertices x (V, 3) inside the posed body (Vb, 3), by the eps_c rule."""
+    from drapebench.geometry.sdf import inside_body
+
+    points = torch.as_tensor(x, dtype=torch.float32)[None]
+    return float(inside_body(points, torch.as_tensor(body_points, dtype=torch.float32)[None], body_faces.cpu()).float().mean())
+
+
+def find_inside(shares, fps: float) -> tuple[int, str] | None:
+    """The first index of ``shares`` (per-frame shares of the garment inside the body) at which more than
+    ``INSIDE_SHARE`` has stayed inside for ``INSIDE_SECONDS`` at ``fps``, and why; None when it never does."""
+    need, held = max(1, round(INSIDE_SECONDS * fps)), 0
+    for t, share in enumerate(shares):
+        held = held + 1 if share > INSIDE_SHARE else 0
+        if held >= need:
+            least = min(shares[t - need + 1 : t + 1])
+            return t, (f"at least {100 * least:.0f}% of its vertices stayed inside the body for {need} frames (limits "
+                       f"INSIDE_SHARE={100 * INSIDE_SHARE:g}%, INSIDE_SECONDS={INSIDE_SECONDS:g}): a physically impossible drape")  # fmt: skip
+    return None
+
+
+def _likely_cause(garment, seq) -> str | None:
+    """The cause a failure most likely has when the scene shows one, with the fix: a garment moved to a body
+    shape farther than ``FAR_SHAPE`` from its own. None: the failure's own advice stands."""
+    a, b = seq.betas.double().reshape(-1), garment.betas.double().reshape(-1)
+    n = min(len(a), len(b))
+    far = float((a[:n] - b[:n]).abs().max()) if n else 0.0
+    if far > FAR_SHAPE:
+        return (f"The garment was made on another body shape and moved to the sequence's, {far:.1f} standard deviations "
+                f"away (limit FAR_SHAPE={FAR_SHAPE:g}), by nearest-vertex transfer: make it on the sequence's shape "
+                "(garment.betas=motion) (not retried: more substeps do not help).")  # fmt: skip
+    return None
+
+
 def _run(garment, seq, body, material: Material, settings: SimSettings, show_progress: bool):
     t_setup = time.perf_counter()
     S, T = int(settings.settle_frames), seq.n_frames
@@ -270,7 +350,7 @@ def _run(garment, seq, body, material: Material, settings: SimSettings, show_pro
     edges = garment.topology.edges.numpy()
     rest_len = garment.topology.rest_edge_lengths.double().numpy()
     free = _free_edges(garment, bool(settings.pins))
-    snag_need, held, held_peak = _snag_frames(float(seq.fps)), 0, 0.0
+    snag_need, held, held_peak, inside = _snag_frames(float(seq.fps)), 0, 0.0, []
     scene = ClothScene(rest, faces, start.double().numpy(), verts[0], body.faces.numpy(), pins.numpy(), material,
                        settings, device)  # fmt: skip
     timings = {"setup": time.perf_counter() - t_setup, "settle": 0.0, "sequence": 0.0}
@@ -315,6 +395,10 @@ def _run(garment, seq, body, material: Material, settings: SimSettings, show_pro
             left = _left_body(x, verts[k + 1])
             if left is not None:
                 raise GarmentLeftBody(garment.name, seq.name, frame, T, left, settings)
+            inside.append(inside_share(x, verts[k + 1], body.faces))
+            stuck = find_inside(inside[-max(1, round(INSIDE_SECONDS * fps)) :], fps)
+            if stuck is not None:
+                raise GarmentInsideBody(garment.name, seq.name, frame, T, stuck[1], settings)
             x_prev = x
             if frame >= 0:
                 out[frame] = x
@@ -328,7 +412,7 @@ def _run(garment, seq, body, material: Material, settings: SimSettings, show_pro
     finally:
         if bar is not None:
             bar.close()
-    stats = {"max_speed": max_speed, "device": device, "n_substeps": (S + T) * n_sub, **_versions()}
+    stats = {"max_speed": max_speed, "device": device, "n_substeps": (S + T) * n_sub, "inside_share": inside[S:], **_versions()}
     return out, timings, stats
 
 
@@ -351,29 +435,33 @@ def reference_path(garment, seq, body, material: Material | None = None, solver:
 
 
 def _run_with_retries(garment, seq, body, material: Material, settings: SimSettings, show_progress: bool):
-    """:func:`_run` at ``settings.substeps``, then after each failure at the next of ``settings.retry_substeps``
-    above it. stats gain ``substeps`` (the count that succeeded) and ``attempts`` (substeps and failure of
-    each try; the successful one has failure None); timings gain ``retries`` (s spent on failed tries) if
-    any. Raises the last failure (its reason lists the earlier ones) when every attempt fails."""
+    """:func:`_run` at ``settings.substeps``, then after each failure that a smaller step can cure at the next
+    of ``settings.retry_substeps`` above it (a garment that left the body or stayed inside it, or one moved to a
+    far body shape, is not retried: the error names the likely cause instead). stats gain ``substeps`` (the
+    count that succeeded) and ``attempts`` (substeps and failure of each try; the successful one has failure
+    None); timings gain ``retries`` (s spent on failed tries) if any. Raises the last failure (its reason lists
+    the earlier ones) when every attempt fails."""
     ladder = [int(settings.substeps), *(n for n in settings.retry_substeps if n > settings.substeps)]
-    attempts, failed_s, err = [], 0.0, None
+    attempts, failed_s, err, cause = [], 0.0, None, None
     for n in ladder:
         t0 = time.perf_counter()
         try:
             verts, timings, stats = _run(garment, seq, body, material, settings.with_(substeps=n), show_progress)
         except SimulationDiverged as e:
-            err = e
+            err, cause = e, _likely_cause(garment, seq)
             failed_s += time.perf_counter() - t0
             attempts.append({"substeps": n, "failure": f"{type(e).__name__} at frame {e.frame}: {e.reason}"})
+            if not e.smaller_step_helps or cause is not None:
+                break
             continue
         attempts.append({"substeps": n, "failure": None})
         if failed_s:
             timings = {**timings, "retries": failed_s}
         return verts, timings, {**stats, "substeps": n, "attempts": attempts}
+    reason = err.reason
     if len(attempts) > 1:
-        earlier = "; ".join(f"substeps={a['substeps']}: {a['failure']}" for a in attempts[:-1])
-        err = type(err)(garment.name, seq.name, err.frame, seq.n_frames, f"{err.reason} (also failed with {earlier})",
-                        settings.with_(substeps=ladder[-1]))  # fmt: skip
+        reason += " (also failed with " + "; ".join(f"substeps={a['substeps']}: {a['failure']}" for a in attempts[:-1]) + ")"
+    err = type(err)(garment.name, seq.name, err.frame, seq.n_frames, reason, settings.with_(substeps=attempts[-1]["substeps"]), cause)
     err.attempts = attempts
     raise err
 
@@ -385,9 +473,9 @@ def _failure_path(path: Path) -> Path:
 def _record_failure(path: Path, err: SimulationDiverged) -> None:
     """Remember that the simulation cached at ``path`` failed at every substep count tried (the error's
     arguments and attempts, no drape), so the next run with the same key fails at once."""
-    garment, sequence, frame, n_frames, reason, settings = err._args
+    garment, sequence, frame, n_frames, reason, settings, cause = err._args
     record = {"error": type(err).__name__, "garment": garment, "sequence": sequence, "frame": frame, "n_frames": n_frames,
-              "reason": reason, "settings": settings.to_dict(), "attempts": getattr(err, "attempts", None)}  # fmt: skip
+              "reason": reason, "settings": settings.to_dict(), "cause": cause, "attempts": getattr(err, "attempts", None)}  # fmt: skip
     with atomic_write(_failure_path(path), "w") as f:
         json.dump(record, f)
 
@@ -400,8 +488,8 @@ def _raise_recorded_failure(path: Path) -> None:
         return
     try:
         r = json.loads(failure.read_text())
-        kind = {"SimulationDiverged": SimulationDiverged, "GarmentLeftBody": GarmentLeftBody}[r["error"]]
-        err = kind(r["garment"], r["sequence"], r["frame"], r["n_frames"], r["reason"], SimSettings(**r["settings"]))
+        err = FAILURES[r["error"]](r["garment"], r["sequence"], r["frame"], r["n_frames"], r["reason"], SimSettings(**r["settings"]),
+                                   r.get("cause"))  # fmt: skip
     except (ValueError, KeyError, TypeError) as e:
         log.warning("removing the unreadable failure record %s (%s)", failure, e)
         failure.unlink(missing_ok=True)
@@ -435,11 +523,14 @@ def simulate_record(
     hit = REFERENCES.load(path, _reader((seq.n_frames, garment.n_vertices, 3)), force) if cache else None
     if hit is not None:
         verts, meta = hit
-        snag = find_snag(verts, garment, bool(cfg.pins), float(seq.fps))
-        if snag is None:
+        shares = meta["stats"].get("inside_share")  # per frame, from the simulation; computed for older entries
+        if shares is None:
+            shares = [inside_share(x, b, body.faces) for x, b in zip(verts, seq.vertices(body).double().numpy())]
+        failed = find_snag(verts, garment, bool(cfg.pins), float(seq.fps)) or find_inside(shares, float(seq.fps))
+        if failed is None:
             return SimulationRecord(torch.from_numpy(verts), meta["timings_s"], cfg, True, time.perf_counter() - t0,
                                     str(path), meta["stats"])  # fmt: skip
-        log.warning("the cached reference %s fails the snag check at frame %d (%s); simulating it again", path.name, *snag)
+        log.warning("the cached reference %s fails its checks at frame %d (%s); simulating it again", path.name, *failed)
     if cache and not force:
         _raise_recorded_failure(path)
     try:

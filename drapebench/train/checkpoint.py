@@ -9,33 +9,37 @@ from pathlib import Path
 
 import torch
 
-from drapebench.cache import atomic_write
+from drapebench.cache import Cache, atomic_write
 
 log = logging.getLogger("drapebench")
 
 
+PARTIAL = Cache("checkpoints", "partial")  # the resumable training state: sealed like every cached file
+
+
 def save_state(path: Path, state: dict) -> None:
-    """Write a training state dict (tensors, optimizer state, RNG states, history) to ``path`` atomically."""
-    with atomic_write(path, mode=None) as tmp:
-        torch.save(state, tmp)
+    """Write a training state dict (tensors, optimizer state, RNG states, history) to ``path`` atomically,
+    sealed with a SHA-256 sidecar (:class:`drapebench.cache.Cache`); the previous state stays valid until then."""
+    PARTIAL.store(path, lambda tmp: torch.save(state, tmp))
 
 
 def load_state(path: Path, key: str) -> dict | None:
-    """The training state saved at ``path`` for run ``key``, or None when there is none. A file that
-    cannot be read or belongs to another run is reported with a warning, removed and not used."""
-    if not path.exists():
-        return None
-    try:
-        state = torch.load(path, map_location="cpu", weights_only=False)
-    except Exception as err:  # a truncated or foreign file: any unpickling error
-        log.warning("training checkpoint %s is unreadable (%s: %s); removing it and starting over", path, type(err).__name__, err)
-        path.unlink(missing_ok=True)
-        return None
-    if not isinstance(state, dict) or state.get("key") != key:
-        log.warning("training checkpoint %s belongs to another run; removing it and starting over", path)
-        path.unlink(missing_ok=True)
-        return None
-    return state
+    """The training state saved at ``path`` for run ``key``, or None: there is none, the run is forced
+    (``force=true``, :func:`drapebench.cache.forcing`), or the file fails its checksum, cannot be read or
+    belongs to another run (a warning names the file; training starts over and replaces it)."""
+
+    def read(p: Path) -> dict:
+        state = torch.load(p, map_location="cpu", weights_only=False)
+        if not isinstance(state, dict) or state.get("key") != key:
+            raise ValueError("it belongs to another run")
+        return state
+
+    return PARTIAL.load(path, read)
+
+
+def remove_state(path: Path) -> None:
+    """Delete the training state at ``path`` and its seal (training ended)."""
+    PARTIAL.remove(path)
 
 
 def write_losses(path: Path, history: list[dict]) -> None:

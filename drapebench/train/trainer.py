@@ -29,7 +29,7 @@ from drapebench.cache import cache_dir
 from drapebench.errors import TrainingDiverged
 from drapebench.progress import progress
 from drapebench.schema import TrainConf
-from drapebench.train.checkpoint import load_state, save_state, write_losses
+from drapebench.train.checkpoint import load_state, remove_state, save_state, write_losses
 from drapebench.train.schedule import scheduled_lr
 
 log = logging.getLogger("drapebench")
@@ -94,6 +94,8 @@ def train_config(cfg: Mapping[str, Any] | TrainConf | None) -> TrainConf:
     unknown = sorted(set(cfg) - set(valid))
     if unknown:
         raise ValueError(f"unknown train parameter(s) {unknown}; valid: {valid}")
+    if int(cfg.get("seed", 0)) < 0:
+        raise ValueError(f"train.seed must be >= 0 (it seeds numpy's generator), got {cfg['seed']}; e.g. train.seed=0")
     return TrainConf(**cfg)
 
 
@@ -105,7 +107,8 @@ def train(objective: Objective, cfg: Mapping[str, Any] | TrainConf | None, log_d
           checkpoint_dir: str | Path | None = None) -> TrainResult:  # fmt: skip
     """Train ``objective`` under budget ``cfg`` (see the module docstring). Writes ``losses.csv`` (and
     ``evaluations.csv`` with :attr:`Objective.evaluate`) into ``log_dir`` when given, and a resumable checkpoint ``<name>_partial_<key>.pt`` into ``checkpoint_dir``
-    (default: the cache's ``checkpoints``) every ``checkpoint_every`` steps, removed when training ends.
+    (default: the cache's ``checkpoints``) every ``checkpoint_every`` steps, sealed with a SHA-256 sidecar like every
+    cached file (one that fails it is not resumed from, and neither is any under ``force=true``), removed when training ends.
     Raises :class:`drapebench.errors.TrainingDiverged` naming the step and the loss term(s) on a
     non-finite loss, and the step on a non-finite gradient (no step is taken on either)."""
     cfg = train_config(cfg)
@@ -121,6 +124,8 @@ def train(objective: Objective, cfg: Mapping[str, Any] | TrainConf | None, log_d
     step, history, evaluations, t_prev, best_loss, best, resumed = 0, [], [], 0.0, math.inf, None, None
     ema = [p.detach().clone() for p in params] if cfg.ema_decay else None
     state = load_state(path, ob.key)
+    if state is None and path.exists():
+        log.info("%s: not resuming from %s; training starts at step 0", ob.name, path)
     if state is None:
         order = rng.permutation(ob.n_items)  # one draw more than used: the seeds keep their shuffles of earlier versions
     else:
@@ -197,7 +202,7 @@ def train(objective: Objective, cfg: Mapping[str, Any] | TrainConf | None, log_d
             torch._foreach_copy_(params, final)
     if log_dir is not None:
         _write_logs(Path(log_dir), history, evaluations)
-    path.unlink(missing_ok=True)
+    remove_state(path)
     return TrainResult(t_prev + time.perf_counter() - t0, step, history, stopped, resumed, evaluations)
 
 

@@ -60,6 +60,10 @@ def test_posed_frames_pose_a_chunk_without_caching_the_whole_sequence(body_lowre
     assert torch.allclose(v, whole_v[4:9], atol=1e-6) and torch.allclose(n, whole_n[4:9], atol=1e-5)
     cached_v, _ = seq.posed_frames(body_lowres, 4, 9)  # now slices of the cached geometry
     assert cached_v.data_ptr() == whole_v[4:9].data_ptr()
+    local, _ = seq.posed_frames(body_lowres, 4, 9, local=True)  # the root translation left out
+    assert seq.trans[4:9].norm(dim=-1).min() > 0.1 and torch.allclose(local + seq.trans[4:9, None], whole_v[4:9], atol=1e-6)
+    far = BodySequence("far", "walk", seq.betas, seq.poses, seq.trans + 1.0e4)  # posed without the translation
+    assert torch.allclose(far.posed_frames(body_lowres, 4, 9, local=True)[0], local, atol=1e-6)
 
 
 def test_cache_is_per_body_and_dtype(body_lowres):

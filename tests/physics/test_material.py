@@ -53,3 +53,22 @@ def test_bad_materials_are_named():
         Material(thickness=0.0)
     with pytest.raises(ValueError, match="gravity"):
         Material(gravity=(0.0, -9.81))
+
+
+@pytest.mark.parametrize("changes, message", [
+    ({"young": float("inf")}, r"Material.young must be a finite number, got inf"),
+    ({"friction": float("nan")}, r"Material.friction must be a finite number, got nan"),
+    ({"collision_thickness": float("nan")}, r"Material.collision_thickness must be a finite number"),
+    ({"gravity": (0.0, 0.0, float("nan"))}, r"Material.gravity must be finite and at most 100 m/s\^2"),
+    ({"gravity": (0.0, 0.0, float("-inf"))}, r"Material.gravity must be finite"),
+    ({"gravity": (0.0, 0.0, -1000.0)}, r"at most 100 m/s\^2 long"),
+    ({"young": 1e9}, r"Material.young = 1e\+09 Pa is outside \[1000, 1e\+07\] Pa, the range of cloth \(cotton: 70000\)"),
+    ({"thickness": 0.5}, r"Material.thickness = 0.5 m is outside"),
+    ({"friction": 50.0}, r"Material.friction = 50 - is outside \[0, 2\]"),
+    ({"dt": 30.0}, r"Material.dt = 30 s is outside"),
+])  # fmt: skip
+def test_non_finite_or_out_of_range_material_values_are_named_with_their_range(changes, message):
+    with pytest.raises(ValueError, match=message):
+        Material(**changes)
+    with pytest.raises(ValueError, match=message):
+        Material.from_config({**Material().to_dict(), **changes})

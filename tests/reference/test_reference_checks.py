@@ -11,9 +11,9 @@ import drapebench.reference.scene as scene_module
 from drapebench.body import make_sequence
 from drapebench.garments import make_garment
 from drapebench.physics import Material
-from drapebench.reference import GarmentLeftBody, SimulationDiverged, simulate_record
+from drapebench.reference import GarmentInsideBody, GarmentLeftBody, SimulationDiverged, simulate_record
 import drapebench.reference.simulator as simulator
-from drapebench.reference.simulator import FEET_BAND, LEAVE_MARGIN, SNAG_STRETCH, _left_body, find_snag
+from drapebench.reference.simulator import FEET_BAND, INSIDE_SHARE, LEAVE_MARGIN, SNAG_STRETCH, _left_body, find_snag
 
 N_FRAMES, TRANSITION, SETTLE = 4, 2, 2
 
@@ -126,13 +126,62 @@ def test_a_divergence_is_retried_with_a_smaller_step_and_recorded(scene, body_lo
 def test_when_every_attempt_fails_the_error_lists_them_and_survives_pickling(scene, body_lowres, monkeypatch, tmp_path):
     monkeypatch.setenv("DRAPEBENCH_DATA", str(tmp_path))
     g, seq = scene
-    steps = fake_scene(monkeypatch, falls)
-    with pytest.raises(GarmentLeftBody, match=r"also failed with substeps=10: GarmentLeftBody.*substeps=20") as err:
+    steps = fake_scene(monkeypatch, torn_at_3)
+    with pytest.raises(SimulationDiverged, match=r"also failed with substeps=10: SimulationDiverged.*substeps=20") as err:
         simulate_record(g, seq, body_lowres, Material(), settle_frames=SETTLE, progress=False)  # vbd.yaml: [20, 40]
     assert steps == [10, 20, 40] and [a["substeps"] for a in err.value.attempts] == [10, 20, 40]
     back = pickle.loads(pickle.dumps(err.value))
-    assert type(back) is GarmentLeftBody and back.attempts == err.value.attempts and str(back) == str(err.value)
+    assert type(back) is SimulationDiverged and back.attempts == err.value.attempts and str(back) == str(err.value)
     assert not list((tmp_path / "cache" / "reference").glob("*.npz"))  # no drape; only the failure record
+
+
+def pushed_in(g):
+    """A fault that pulls the garment towards its vertical axis from frame 1 on: the skirt ends inside the hips."""
+    centre = g.vertices.mean(0).numpy() * np.float32([1.0, 1.0, 0.0])
+
+    def fault(x, n):
+        return (x - centre) * np.float32([0.5, 0.5, 1.0]) + centre if n >= 1 else x
+
+    return fault
+
+
+@pytest.mark.parametrize("fault, betas, pins, error, cause", [
+    (falls, None, True, GarmentLeftBody, r"Its pins do not hold it: .*garment.pins .*not retried"),
+    (falls, None, False, GarmentLeftBody, r"The pins are off \(reference.pins=false\)"),
+    ("pushed_in", None, True, GarmentInsideBody, r"stayed inside the body for 3 frames .*the material is the likely cause .*not retried"),
+    (torn_at_3, [0.0, 3.0], True, SimulationDiverged, r"3.0 standard deviations away .*garment.betas=motion\) \(not retried"),
+])  # fmt: skip
+def test_a_failure_more_substeps_cannot_fix_is_not_retried_and_names_its_likely_cause(
+    scene, body_lowres, monkeypatch, tmp_path, fault, betas, pins, error, cause
+):
+    monkeypatch.setenv("DRAPEBENCH_DATA", str(tmp_path))
+    monkeypatch.setattr(simulator, "INSIDE_SECONDS", 0.1)  # 3 frames at 30 fps (the run has 2 + 6)
+    g, seq = scene
+    if betas is not None:
+        seq = make_sequence("walk", N_FRAMES, transition=TRANSITION, seed=3, betas=betas)
+    steps = fake_scene(monkeypatch, pushed_in(g) if fault == "pushed_in" else fault)
+    with pytest.raises(error, match=cause) as err:
+        simulate_record(g, seq, body_lowres, Material(), settle_frames=SETTLE, pins=pins, progress=False)  # vbd.yaml: [20, 40]
+    assert steps == [10] and type(err.value) is error and "Try more substeps" not in str(err.value)
+    cache = tmp_path / "cache" / "reference"
+    assert not list(cache.glob("*.npz")) and len(list(cache.glob("*.failed.json"))) == 1  # recorded, never cached
+    with pytest.raises(error, match=cause):  # the recorded failure is raised at once, with its cause
+        simulate_record(g, seq, body_lowres, Material(), settle_frames=SETTLE, pins=pins, progress=False)
+    assert steps == [10]
+
+
+def test_a_cached_drape_with_the_garment_inside_the_body_is_simulated_again(scene, body_lowres, monkeypatch, tmp_path, caplog):
+    monkeypatch.setenv("DRAPEBENCH_DATA", str(tmp_path))
+    monkeypatch.setattr(simulator, "INSIDE_SECONDS", 0.1)
+    g, seq = scene
+    steps = fake_scene(monkeypatch, pushed_in(g))
+    monkeypatch.setattr(simulator, "INSIDE_SHARE", 1.0)  # an older simulator without the check: cached
+    rec = simulate_record(g, seq, body_lowres, Material(), settle_frames=SETTLE, progress=False)
+    assert not rec.from_cache and max(rec.stats["inside_share"]) > 0.3
+    monkeypatch.setattr(simulator, "INSIDE_SHARE", INSIDE_SHARE)
+    with pytest.raises(GarmentInsideBody):
+        simulate_record(g, seq, body_lowres, Material(), settle_frames=SETTLE, progress=False)
+    assert steps == [10, 10] and "fails its checks" in caplog.text
 
 
 def test_the_leave_body_rule(scene, body_lowres):
@@ -198,4 +247,4 @@ def test_a_cached_drape_that_snags_is_simulated_again(scene, body_lowres, monkey
     monkeypatch.setattr(simulator, "SNAG_STRETCH", SNAG_STRETCH)
     with pytest.raises(SimulationDiverged, match="snagged"):
         simulate_record(g, seq, body_lowres, Material(), settle_frames=SETTLE, retry_substeps=[], progress=False)
-    assert steps == [10, 10] and "fails the snag check" in caplog.text
+    assert steps == [10, 10] and "fails its checks" in caplog.text

@@ -9,6 +9,7 @@ import signal
 import subprocess
 import sys
 import time
+import zipfile
 from pathlib import Path
 
 import pytest
@@ -70,14 +71,44 @@ def test_an_interrupted_run_resumes_from_its_checkpoint_and_ends_where_an_uninte
     assert other.resumed_from is None
 
 
-def test_an_unreadable_checkpoint_is_not_loaded(tmp_path, caplog):
+def _flip_a_weight_byte(ckpt: Path) -> None:
+    """Flip one byte inside a stored tensor's data (a bit error torch.load itself does not notice)."""
+    with zipfile.ZipFile(ckpt) as z:
+        info = next(i for i in z.infolist() if "/data/" in i.filename and i.file_size >= 8)
+    data = bytearray(ckpt.read_bytes())
+    local_extra = int.from_bytes(data[info.header_offset + 28 : info.header_offset + 30], "little")
+    start = info.header_offset + 30 + len(info.filename.encode()) + local_extra  # local header: 30 bytes + name + extra
+    data[start + 2] ^= 0x10
+    ckpt.write_bytes(bytes(data))
+
+
+@pytest.mark.parametrize("damage", ["truncated", "flipped"])
+def test_a_damaged_partial_checkpoint_is_detected_by_its_checksum_and_not_resumed(tmp_path, caplog, damage):
     with pytest.raises(KeyboardInterrupt):
         _run(tmp_path, interrupt_at=4)
     (ckpt,) = (tmp_path / "ckpt").glob("toy_partial_*.pt")
-    ckpt.write_bytes(ckpt.read_bytes()[:100])  # truncated
+    assert ckpt.with_name(ckpt.name + ".sha256").exists()  # sealed like every cached file
+    if damage == "truncated":
+        ckpt.write_bytes(ckpt.read_bytes()[:100])
+    else:
+        _flip_a_weight_byte(ckpt)
     with caplog.at_level(logging.WARNING, logger="drapebench"):
+        res, params = _run(tmp_path)
+    assert f"{ckpt} fails its checksum" in caplog.text
+    assert res.resumed_from is None and res.n_steps == BUDGET["steps"]
+    whole, params_whole = _run(tmp_path / "whole")
+    assert res.history == whole.history and all(torch.equal(a, b) for a, b in zip(params, params_whole))  # started over
+    assert not list((tmp_path / "ckpt").iterdir())  # state and seal removed at the end
+
+
+def test_force_does_not_resume_from_a_partial_checkpoint(tmp_path):
+    from drapebench.cache import forcing
+
+    with pytest.raises(KeyboardInterrupt):
+        _run(tmp_path, interrupt_at=4)
+    with forcing():
         res, _ = _run(tmp_path)
-    assert res.resumed_from is None and res.n_steps == BUDGET["steps"] and "unreadable" in caplog.text
+    assert res.resumed_from is None and res.n_steps == BUDGET["steps"]
 
 
 def test_kill_9_mid_training_then_the_same_command_continues(tmp_path):
