@@ -97,7 +97,7 @@ def optimise_sequence(loss: WindowLoss, start: torch.Tensor, window: int, solver
 def _floats(terms: dict[str, torch.Tensor], t: int, where: str) -> dict[str, float]:
     """The terms as floats; ValueError naming the non-finite ones."""
     out = {k: float(v) for k, v in terms.items()}
-    bad = [k for k, v in out.items() if not torch.isfinite(torch.tensor(v))]
+    bad = [k for k, v in out.items() if not math.isfinite(v)]
     if bad:
         raise ValueError(f"optimum: non-finite loss term(s) {bad} at frame {t} ({where})")
     return out
