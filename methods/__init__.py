@@ -15,6 +15,7 @@ _REGISTRY: dict[str, str] = {
     # name -> "module:Class"; imported lazily so one method's heavy deps never load for another.
     "lbs": "methods.lbs:LBSMethod",
     "gaps": "methods.gaps:GAPS",
+    "gaps_optimum": "methods.gaps:GapsOptimum",
     "pbs": "methods.pbs:PBSMethod",
     "gensim": "methods.gensim:GenSim",
     "vae": "methods.vae:VAEModel",

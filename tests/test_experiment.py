@@ -124,6 +124,15 @@ def test_gaps_reads_its_own_training_keys_per_budget_and_a_wrong_train_key_fails
         _compose(["train.steps=many"])
 
 
+def test_gaps_optimum_composes_with_gaps_loss_and_its_solver_settings():
+    import methods
+
+    cfg = _compose(["method=gaps_optimum"]).method
+    assert cfg.impl == "gaps_optimum" and cfg.params.optimum.solver == "lbfgs" and cfg.params.train.kext_ramp_epochs == 3
+    m = methods.get(cfg.impl)(OmegaConf.to_container(cfg.params, resolve=True))
+    assert m.kext_epoch() == 3 and m.p["inextensibility_weight"] == 2e8  # k_ext at the end of the budget's ramp
+
+
 def test_training_writes_losses_and_evaluations_csv_into_the_run_directory_and_a_loaded_checkpoint_too(tmp_path, monkeypatch, body_lowres):
     from drapebench.experiment import _checkpoint
     from methods.base import DrapingMethod, FitReport

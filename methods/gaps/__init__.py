@@ -1,5 +1,6 @@
-"""GAPS and its SNUG-like / NCS-like ablations."""
+"""GAPS, its SNUG-like / NCS-like ablations, and the optimum of its loss (``gaps_optimum``)."""
 
 from methods.gaps.method import GAPS
+from methods.gaps.optimum import GapsOptimum
 
-__all__ = ["GAPS"]
+__all__ = ["GAPS", "GapsOptimum"]

@@ -1,5 +1,6 @@
 """GAPS's settings and their defaults: the model (``METHOD_DEFAULTS``) and the training keys only GAPS
-reads (``TRAIN_DEFAULTS``, under ``method.params.train``; the budget itself is ``conf/train``).
+reads (``TRAIN_DEFAULTS``, under ``method.params.train``; the budget itself is ``conf/train``), and the
+solver settings of ``gaps_optimum`` (``OPTIMUM_DEFAULTS``, under ``method.params.optimum``).
 
 Training defaults are the paper's / public code's; ``conf/method/gaps_budget/<train preset>.yaml``
 gives the values a training preset needs (e.g. the CPU budget's k_ext ramp)."""
@@ -8,6 +9,7 @@ from __future__ import annotations
 
 from typing import Any, Mapping
 
+from drapebench.optimum import SOLVERS
 from methods.params import method_params
 
 TRAIN_DEFAULTS = dict(
@@ -37,6 +39,13 @@ METHOD_DEFAULTS = dict(
     collision_postprocess=False,  # SNUG's push-out at inference; off unless a config asks for it
     train=TRAIN_DEFAULTS,
 )
+OPTIMUM_DEFAULTS = dict(
+    solver="lbfgs",  # drapebench.optimum.SOLVERS: lbfgs | adam
+    iterations=50,  # per frame: L-BFGS iterations (each one or more loss evaluations) or Adam steps
+    lr=1.0,  # L-BFGS step (1: the quasi-Newton step) or Adam's rate (m per step)
+    history=20,  # L-BFGS correction pairs
+    kext_epoch=None,  # the training epoch whose k_ext the loss uses; None: the end of train.kext_ramp_epochs (its final value)
+)
 CHOICES = dict(skinning=("rbf", "nearest", "smoothed"), collision_distance=("surface", "vertex"), kext=("collision", "one"), bending=("blend", "flat", "template"))
 
 
@@ -44,3 +53,9 @@ def gaps_params(cfg: Mapping[str, Any] | None) -> dict:
     """GAPS's parameters: the defaults updated by ``cfg`` (``method.params``; its ``train`` sub-dict
     updates ``TRAIN_DEFAULTS``). Raises ValueError naming an unknown key or an invalid choice."""
     return method_params("gaps", cfg, METHOD_DEFAULTS, {"train": TRAIN_DEFAULTS}, CHOICES)
+
+
+def optimum_params(cfg: Mapping[str, Any] | None) -> dict:
+    """The solver settings of ``gaps_optimum`` (``method.params.optimum``): ``OPTIMUM_DEFAULTS`` updated by
+    ``cfg``. Raises ValueError naming an unknown key or an invalid solver."""
+    return method_params("gaps_optimum", cfg, OPTIMUM_DEFAULTS, choices={"solver": SOLVERS})

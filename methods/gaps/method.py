@@ -151,11 +151,32 @@ class GAPS(DrapingMethod):
         delta, _ = self.net(self._inputs(betas, pose, vel), h0)
         xc = self._canonical(delta, betas).reshape(B * W, -1, 3)
         x = skin_then_translate(xc, self.weights, out.transforms, tr.reshape(B * W, 3))  # (B*W, V, 3)
-        nn = self._body_contact(x, out.vertices, normals)
-        terms, k_ext = losses.loss_terms(x, W, nn, self.topology, self.material, p, at.epoch, self.bend_blend)
+        return self._terms(x, out.vertices, normals, at.epoch)
+
+    def _terms(self, x: torch.Tensor, body_vertices: torch.Tensor, body_normals: torch.Tensor, epoch: int) -> dict:
+        """The training loss's named, weighted terms of drapes x (B*W, V, 3) m, B windows of ``train.window``
+        frames, on the posed body (body_vertices, body_normals (B*W, Vb, 3)), with k_ext at ``epoch``."""
+        nn = self._body_contact(x, body_vertices, body_normals)
+        terms, k_ext = losses.loss_terms(x, self.p["train"]["window"], nn, self.topology, self.material, self.p, epoch, self.bend_blend)
         if k_ext is not None:
             self.last_kext_max = float(k_ext.max())
         return terms
+
+    def window_loss(self, seq, epoch: int):
+        """GAPS's training loss as a function of the drape, for :func:`drapebench.optimum.optimise_sequence`:
+        a callable (t, window (W, V, 3) m, the drapes of frames t-W+1..t of ``seq``) -> (loss, {term: value}),
+        the same terms, weights, normalisation (one window: B = 1) and body contact as a training step at
+        ``epoch`` (which sets k_ext, GAPS Eq. 16). Needs the garment's constants (:meth:`_setup`)."""
+        W = self.p["train"]["window"]
+        body_vertices = seq.vertices(self.body).to(self.body.dtype)
+        body_normals = seq.vertex_normals(self.body).to(self.body.dtype)
+
+        def loss(t: int, window: torch.Tensor):
+            frames = [max(i, 0) for i in range(t - W + 1, t + 1)]  # before the sequence: its first frame (at rest)
+            terms = self._terms(window, body_vertices[frames], body_normals[frames], epoch)
+            return sum(terms.values()), terms
+
+        return loss
 
     def _body_contact(self, x: torch.Tensor, body_vertices: torch.Tensor, body_normals: torch.Tensor):
         """Where each garment vertex x (B, V, 3) m meets the posed body (body_vertices, body_normals
@@ -212,8 +233,11 @@ class GAPS(DrapingMethod):
         betas = self._sequence_betas(seq)
         vel = root_velocity(seq)[None].to(self.body.dtype)
         delta, h = self.net(self._inputs(betas, seq.poses[None].to(self.body.dtype), vel), h0)
-        x = skin_then_translate(self._canonical(delta, betas)[0], self.weights, seq.transforms(self.body), seq.trans.to(self.body.dtype))
-        return x, h
+        return self._skinned(delta, betas, seq), h
+
+    def _skinned(self, delta: torch.Tensor, betas: torch.Tensor, seq) -> torch.Tensor:
+        """The drape (T, V, 3) m of canonical displacements delta (1, T, 3V) m on ``seq`` with shape betas (1, S)."""
+        return skin_then_translate(self._canonical(delta, betas)[0], self.weights, seq.transforms(self.body), seq.trans.to(self.body.dtype))
 
     # ------------------------------------------------------------------ state
     def state_dict(self) -> dict:
