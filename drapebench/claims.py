@@ -79,7 +79,8 @@ def read_table(path: Path) -> Table:
 @dataclass(frozen=True)
 class Claim:
     """One headline claim. ``kind``: "order" (every ``greater`` pair (a, b) has a's ``metric`` above b's in every
-    group of ``groups``; a dict maps a group to its own pairs), "level" (``row``'s ``metric`` at most ``bound`` in
+    group of ``groups``; a dict maps a group to its own pairs), "order_groups" (``row``'s ``metric`` in group a above
+    group b for every ``greater`` pair (a, b)), "level" (``row``'s ``metric`` at most ``bound`` in
     every group), "runs" (``row`` has a number in every group) or "untested" (``why``: what it needs)."""
 
     id: str
@@ -99,6 +100,7 @@ class Claim:
     notes: tuple = field(default_factory=tuple)
 
 
+KINDS = ("order", "order_groups", "level", "runs", "untested")
 RULES = (
     "**reproduced**: the relation holds in every case (group x metric) and, where a cell has several seeds, the "
     "two mean ± std bands do not overlap (a level: mean + std within the bound); "
@@ -124,6 +126,8 @@ def _groups(claim: Claim, table: Table) -> list:
 
 def evaluate(claim: Claim, table: Table | None) -> tuple[str, str]:
     """(ours, verdict) of ``claim`` on ``table``: the values per case and the verdict by :data:`RULES`."""
+    if claim.kind not in KINDS:
+        raise ValueError(f"claim {claim.id}: unknown kind {claim.kind!r}; kinds: {', '.join(KINDS)}")
     if claim.kind == "untested":
         return "–", f"not testable here: {claim.why}"
     if table is None:
@@ -166,6 +170,8 @@ def evaluate(claim: Claim, table: Table | None) -> tuple[str, str]:
                 holds = v.mean <= claim.bound
                 cases.append((holds, holds and v.mean + _s(v) <= claim.bound, v.n))
                 shown.append(f"{where} {v.text()}".strip())
+    if not cases:
+        return "–", "not run (the table has none of the claim's groups)"
     return "; ".join(shown), _verdict(cases, claim)
 
 

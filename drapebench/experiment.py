@@ -217,7 +217,8 @@ def claim_run_dir(out: Path, config: str) -> None:
     if present:
         for name in present:
             shutil.rmtree(out / name) if (out / name).is_dir() else (out / name).unlink()
-        log.warning("run folder %s held files of an earlier run of this config (%s); removed them", out, ", ".join(present))
+        whose = "an earlier run of this config" if earlier == config else "a run that wrote no result"
+        log.warning("run folder %s held files of %s (%s); removed them", out, whose, ", ".join(present))
     with atomic_write(out / "config.yaml", "w") as f:
         f.write(config)
 
@@ -269,7 +270,7 @@ def failure_record(cfg: DictConfig, err: BaseException) -> dict:
     """The ``failed.json`` record of a run of ``cfg`` that raised ``err``: the scene, the error and its message."""
     return {"status": "failed", "method": cfg.method.name, "garment": cfg.garment.kind, "motion": cfg.motion.name,
             "body": cfg.body.name, "shape": shape_label(cfg.motion.betas), "dtype": getattr(cfg.dtype, "name", str(cfg.dtype)),
-            "error": type(err).__name__,
+            "seed": int(cfg.seed), "train_seed": int(cfg.train.seed), "device": str(cfg.device), "error": type(err).__name__,
             "message": str(err), "experiment": cfg.experiment_name, "commit": git_commit()}  # fmt: skip
 
 

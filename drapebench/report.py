@@ -198,6 +198,8 @@ def seeds_note(df: pd.DataFrame, group: str | None) -> str:
     cover different scenes."""
     ids = seed_ids(df)
     seeds = ", ".join(sorted(set(ids) - {""}, key=lambda s: [int(p) for p in s.split("/")])) or "not recorded"
+    if group is None:  # a per-run table: each run its own row, named by its seed where they differ
+        return f"Seeds: {seeds} (one row per run{', its seed in the seed column' if ids.nunique() > 1 else ''})."
     counts = df.assign(_seed=ids).groupby(["method"] + ([group] if group else []), sort=False)["_seed"].nunique()
     several = bool((counts > 1).any())
     line = (f"Seeds: {seeds}. A cell \"mean ± std (n=k)\" is the mean and sample std over k training seeds (each "

@@ -82,3 +82,11 @@ def test_every_paper_table_and_figure_has_a_claim_and_ids_are_unique():
 def test_committed_claims_md_is_what_the_committed_csvs_give():
     committed = (REPORTS / "claims.md").read_text()
     assert committed == render(CLAIMS, REPORTS), "reports/claims.md drifted from reports/*.csv: run `python -m drapebench.report --claims`"
+
+
+def test_a_claim_with_none_of_its_groups_is_not_run_and_an_unknown_kind_fails(tmp_path):
+    t = _table(tmp_path, {"hi": ["5", "6"], "lo": ["1", "2"]})
+    only_c = Claim("c", "P", "on c", "-", "order", table="t", metrics=("m",), greater={"c": [("hi", "lo")]})
+    assert evaluate(only_c, t)[1].startswith("not run")
+    with pytest.raises(ValueError, match="unknown kind 'ordr'"):
+        evaluate(Claim("k", "P", "typo", "-", "ordr", table="t", metrics=("m",)), t)

@@ -35,7 +35,7 @@ import numpy as np
 import torch
 from scipy.spatial.transform import Rotation
 
-from drapebench.body.motion_file import check_axis_angle, motion_sequence, read_motion_file
+from drapebench.body.motion_file import check_axis_angle, motion_sequence, numeric_array, read_motion_file
 from drapebench.body.sequence import DEFAULT_TRANSITION, BodySequence
 
 log = logging.getLogger("drapebench")
@@ -101,7 +101,7 @@ def tpose_rotations(body) -> np.ndarray:
 
 def _layout(poses: np.ndarray, source: str) -> tuple[str, tuple, tuple, np.ndarray]:
     """The layout (name, joint names, parents) of file poses and the poses as (T, n, 3) float64."""
-    poses = np.asarray(poses, dtype=np.float64)
+    poses = numeric_array(poses, "poses", source)
     if poses.ndim == 3 and poses.shape[-1] == 3:
         poses = poses.reshape(len(poses), -1)
     if poses.ndim != 2 or poses.shape[1] not in LAYOUTS:
@@ -119,7 +119,7 @@ def _frame_rate(d: dict, source: str, source_fps: float | None) -> float:
         key = next((k for k in FPS_KEYS if k in d), None)
         if key is None:
             raise ValueError(f"{source} has no frame rate (none of {', '.join(FPS_KEYS)}); set it: motion.source_fps=120")
-        value = np.asarray(d[key], dtype=np.float64).reshape(-1)[0]
+        value = numeric_array(d[key], "fps", f"{source}: {key}").reshape(-1)[0]
     if not np.isfinite(value) or value <= 0:
         raise ValueError(f"{source}: {key} = {value}; a frame rate must be a number > 0 (frames per second): fix the file or set "
                          "motion.source_fps=120")  # fmt: skip
@@ -272,7 +272,7 @@ def load_amass(path: str | Path, body, fps: float | None = 30.0, start: int = 0,
     if "trans" not in d:
         raise ValueError(f"{source} has no 'trans' array (found {sorted(d)}); an SMPL motion needs trans (T, 3) root "
                          "translation in metres: add it (zeros for a motion in place)")  # fmt: skip
-    trans = np.asarray(d["trans"], dtype=np.float64)
+    trans = numeric_array(d["trans"], "trans", source)
     if trans.shape != (len(poses), 3):
         raise ValueError(f"{source}: trans has shape {trans.shape}; expected ({len(poses)}, 3) metres, one row per pose")
     if not np.isfinite(trans).all():
@@ -281,8 +281,12 @@ def load_amass(path: str | Path, body, fps: float | None = 30.0, start: int = 0,
     if len(poses) < 2:
         raise ValueError(f"{source} has {len(poses)} frame(s); a motion needs at least 2")
     fps = file_fps if fps is None else float(fps)
-    if not fps > 0:
-        raise ValueError(f"motion.fps must be > 0 frames per second (null: the file's), got {fps}")
+    if not (np.isfinite(fps) and fps > 0):
+        raise ValueError(f"motion.fps must be a finite number > 0 frames per second (null: the file's), got {fps}")
+    try:
+        body.full_betas(betas)  # before the body is posed with them (root=ground)
+    except ValueError as err:
+        raise type(err)(f"motion.betas: {err}") from None
     index = _joint_map(body, joints, layout, source)
     _check_up_axis(poses, up_axis, source)
     _warn_dropped(poses, joints, body, layout, source)

@@ -152,18 +152,20 @@ def load_motion(path: str | Path, body, fps: float | None = None, betas=None, n_
     if start.any():
         trans[:, :2] -= start
         log.info("%s: the root starts at x=%.4g, y=%.4g m; the motion is moved to start above the origin", path, *start)
+    betas_source = "motion.betas"
     if betas is None and "betas" in d:
-        betas = numeric_array(d["betas"], "betas", str(path)).reshape(-1)
-    return motion_sequence(poses, trans, fps, body, betas, transition, name or path.stem, "file", {"source": str(path)})
+        betas, betas_source = numeric_array(d["betas"], "betas", str(path)).reshape(-1), f"{path}: betas"
+    return motion_sequence(poses, trans, fps, body, betas, transition, name or path.stem, "file", {"source": str(path)}, betas_source)
 
 
 def motion_sequence(poses: np.ndarray, trans: np.ndarray, fps: float, body, betas, transition: int, name: str, motion: str,
-                    params: dict) -> BodySequence:  # fmt: skip
+                    params: dict, betas_source: str = "motion.betas") -> BodySequence:  # fmt: skip
     """A test :class:`BodySequence` from poses (T, J, 3) axis-angle in the body's joint order and trans (T, 3) m at
     ``fps`` Hz, with ``transition`` frames prepended that blend from the rest pose (pose 0, trans 0) into the first
     frame (quintic smoothstep); betas padded by :meth:`BodyModel.full_betas` (None: mean shape). ``params["source"]``
     names the file in errors: fewer than 2 frames, a root faster than :data:`MAX_ROOT_SPEED` (centimetres), a first
-    frame whose root the transition would have to lift faster than that, betas out of the body's range."""
+    frame whose root the transition would have to lift faster than that, betas out of the body's range (named by
+    ``betas_source``: the config key or the file's key)."""
     source = params["source"]
     if len(poses) < 2:
         raise ValueError(f"{source} has {len(poses)} frame(s); a motion needs at least 2")
@@ -183,7 +185,7 @@ def motion_sequence(poses: np.ndarray, trans: np.ndarray, fps: float, body, beta
     try:
         full = body.full_betas(betas, note=True).float().cpu()
     except ValueError as err:
-        raise type(err)(f"{source}: betas: {err}") from None
+        raise type(err)(f"{betas_source}: {err}") from None
     return BodySequence(
         name=name, motion=motion, betas=full, poses=torch.from_numpy(poses),
         trans=torch.from_numpy(trans), fps=fps, split="test", n_transition=transition, params=params,

@@ -177,7 +177,7 @@ def test_a_bad_amass_file_fails_naming_the_file_the_key_and_the_fix(kind, messag
     [
         ({"start": 11}, r"motion.start=11: .* has 12 frames at 30 fps; give 0..10"),
         ({"start": 2, "n_frames": 11}, r"motion.n_frames=11: .* has 10 frames at 30 fps from motion.start=2; give 2..10 or null"),
-        ({"fps": 0.0}, r"motion.fps must be > 0"),
+        ({"fps": 0.0}, r"motion.fps must be a finite number > 0"),
         ({"fps": 2.0}, r"m.npz lasts 0.392 s: fewer than 2 frames at 2 fps; a motion needs at least 2"),
         ({"up_axis": "x"}, r"motion.up_axis must be 'z' \(AMASS\) or 'y'"),
         ({"root": "centre"}, r"motion.root must be 'ground' or 'file'"),
@@ -201,3 +201,12 @@ def test_amass_keys_are_read_only_by_motion_amass(walk120, body_lowres, tmp_path
     path = _save(tmp_path / "m.npz", to_smpl_layout(walk120, body_lowres))
     seq = sequence_from_config({**amass, "path": str(path)}, body_lowres)
     assert seq.n_frames == 2 + 12 and seq.n_transition == 2 and seq.name == "m"
+
+
+def test_motion_betas_out_of_range_are_named_as_the_config_key_not_the_file(tmp_path, body_lowres):
+    path = tmp_path / "m.npz"
+    np.savez(path, **to_smpl_layout(make_sequence("walk", 8, seed=0), body_lowres))
+    with pytest.raises(ValueError, match=r"^motion\.betas: .*outside"):
+        load_amass(path, body_lowres, betas=[0.0, 300.0])
+    with pytest.raises(ValueError, match="finite number > 0"):
+        load_amass(path, body_lowres, fps=float("inf"))
