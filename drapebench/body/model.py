@@ -360,18 +360,32 @@ class _ChumpyStub:
         return np.asarray(self.x, dtype=dtype)
 
 
+PICKLE_BUILTINS = {("copy_reg", "_reconstructor"), ("copyreg", "_reconstructor"), ("__builtin__", "object"),
+                   ("builtins", "object")}  # what numpy arrays in a (Python 2) pickle reconstruct with
+
+
 class _SMPLUnpickler(pickle.Unpickler):
+    """Loads only what SMPL-family files hold: numpy and scipy.sparse arrays, chumpy arrays (as stubs); any other
+    class (which could run code on loading) is refused."""
+
     def find_class(self, module, name):
         if module.startswith("chumpy"):
             return _ChumpyStub
-        return super().find_class(module, name)
+        if module.split(".")[0] == "numpy" or module.startswith("scipy.sparse") or (module, name) in PICKLE_BUILTINS:
+            return super().find_class(module, name)
+        raise pickle.UnpicklingError(f"refusing to load {module}.{name} from a pickle: an SMPL-family file holds only numpy, "
+                                     "scipy.sparse and chumpy arrays; convert the file to .npz")  # fmt: skip
 
 
 def read_pickle(path: Path) -> dict:
     """The dict of an SMPL-family pickle (a body model or a pose file; Python 2 pickles too), chumpy arrays as
-    numpy, without chumpy installed. Raises ValueError when the pickle is not a dict."""
+    numpy, without chumpy installed. Raises ValueError when the pickle is not a dict or holds a class other than
+    numpy's, scipy.sparse's or chumpy's (which could run code when loaded)."""
     with open(path, "rb") as f:
-        d = _SMPLUnpickler(f, encoding="latin1").load()
+        try:
+            d = _SMPLUnpickler(f, encoding="latin1").load()
+        except pickle.UnpicklingError as err:
+            raise ValueError(f"{path}: {err}") from None
     if not isinstance(d, dict):
         raise ValueError(f"{path}: expected a dict of SMPL arrays, found {type(d).__name__}")
     return {k: (np.asarray(v) if isinstance(v, _ChumpyStub) else v) for k, v in d.items()}

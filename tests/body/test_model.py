@@ -97,6 +97,25 @@ def test_user_smpl_npz_and_pkl(tmp_path):
     assert torch.allclose(yup.v_template[:, 1], -v[:, 2], atol=1e-6)
 
 
+class _RunsCode:
+    def __reduce__(self):
+        import os
+
+        return (os.getcwd, ())  # harmless here; a hostile file would name os.system
+
+
+def test_a_pickle_with_anything_but_arrays_is_refused_before_it_runs(tmp_path):
+    from drapebench.body.motion_file import read_motion_file
+
+    for name in ("body.pkl", "motion.pkl"):
+        with open(tmp_path / name, "wb") as f:
+            pickle.dump({"poses": np.zeros((2, 3)), "v_template": _RunsCode()}, f)
+    with pytest.raises(ValueError, match="refusing to load posix.getcwd"):
+        load_body(tmp_path / "body.pkl")
+    with pytest.raises(ValueError, match="refusing to load posix.getcwd"):
+        read_motion_file(tmp_path / "motion.pkl")
+
+
 def test_malformed_body_file_names_the_key(tmp_path):
     rng = np.random.default_rng(3)
     a = _tiny_smpl_arrays(rng)
