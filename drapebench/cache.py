@@ -236,11 +236,12 @@ class Cache:
         seal = _seal_path(path)
         with atomic_write(path, mode=None) as tmp:
             writer(tmp)
+            checksum = file_checksum(tmp)
             previous = seal.read_text().split() if seal.exists() and path.exists() else []
             with atomic_write(seal, "w") as f:
-                f.write("\n".join([*previous, file_checksum(tmp)]))
+                f.write("\n".join([*previous, checksum]))
         with atomic_write(seal, "w") as f:
-            f.write(file_checksum(path))
+            f.write(checksum)
         forced = _FORCED.get()
         if forced is not None:
             forced.add(path)

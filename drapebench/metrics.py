@@ -119,6 +119,7 @@ def evaluate(
     origin = seq.trans.to(device, torch.float64)  # (T, 3) m: every frame is measured relative to its root
     jitter = _jitter(p, chunk_frames)[first:]
     material = material or Material()
+    mass = float(topo.vertex_masses(material).double().sum()) if energies else 0.0  # kg: the garment's, fixed per garment
     chunks, depth_sum, n_inside = [], [], []
     with torch.no_grad():
         for start in range(first, seq.n_frames, chunk_frames):
@@ -133,7 +134,7 @@ def evaluate(
             if energies:
                 terms = energy_terms(x, topo, material, near=nn)
                 cols.update({f"energy_{k}": v for k, v in terms.items()})
-                cols["energy_gravity"] = cols["energy_gravity"].double() + _gravity_of_origin(origin[start:stop], topo, material)
+                cols["energy_gravity"] = cols["energy_gravity"].double() + _gravity_of_origin(origin[start:stop], mass, material)
             chunks.append({k: v.detach().cpu().double() for k, v in cols.items()})
             depth_sum.append(float(depth.double().sum()))
             n_inside.append(int(n_in.sum()))
@@ -165,10 +166,9 @@ def _jitter(x: torch.Tensor, chunk_frames: int) -> torch.Tensor:
     return acc
 
 
-def _gravity_of_origin(origin: torch.Tensor, topo, material) -> torch.Tensor:
-    """(B,) float64 J: the gravitational energy -M g . o of the garment's mass M moved by each frame's origin
+def _gravity_of_origin(origin: torch.Tensor, mass: float, material) -> torch.Tensor:
+    """(B,) float64 J: the gravitational energy -M g . o of the garment's mass M (kg) moved by each frame's origin
     o (B, 3) m, so that energy_gravity keeps the world's datum (z = 0) though measured in the local frame."""
-    mass = float(topo.vertex_masses(material).double().sum())
     g = torch.tensor(material.gravity, dtype=torch.float64, device=origin.device)
     return -mass * (origin @ g)
 
