@@ -211,7 +211,7 @@ def inextensibility_energy(
 
 
 def collision_aware_kext(
-    distance: torch.Tensor, epoch: int, eps: float = 2e-3, rate: float = 10.0, cap: float = 0.03, ramp_epochs: int = 100
+    distance: torch.Tensor, epoch: float, eps: float = 2e-3, rate: float = 10.0, cap: float = 0.03, ramp_epochs: int = 100
 ) -> torch.Tensor:
     """GAPS Eq. 16 extension factor per vertex: k_ext = 1 + min(rate d_c, cap) min(epoch, ramp_epochs), d_c = max(eps - d, 0).
 

@@ -50,7 +50,8 @@ class Objective:
     """What a learned method gives the trainer.
 
     name: label of the progress bar, messages and checkpoint files.
-    param_groups: ``[{"params": [tensors], "lr_factor": f}, ...]``; each group learns at f x the scheduled rate.
+    param_groups: ``[{"params": [tensors], "lr_factor": f}, ...]``; each group learns at f x the scheduled rate,
+        with Adam's ``eps`` if the group gives one (else torch's 1e-8).
     n_items: training items (e.g. windows of frames) in one epoch; batches are shuffled indices into them.
     batch: (item indices (b,), Step) -> a batch, whatever ``loss_terms`` takes.
     loss_terms: (batch, Step) -> {term name: scalar tensor}, each term already weighted; the loss is their sum.
@@ -117,7 +118,7 @@ def train(objective: Objective, cfg: Mapping[str, Any] | TrainConf | None, log_d
         raise ValueError(f"{ob.name}: no training items (empty training data)")
     steps_per_epoch = max(1, math.ceil(ob.n_items / cfg.batch_size))
     total = int(cfg.steps) if cfg.steps is not None else steps_per_epoch * int(cfg.epochs)
-    opt = torch.optim.Adam([{"params": g["params"], "factor": g["lr_factor"]} for g in ob.param_groups], lr=cfg.lr)
+    opt = torch.optim.Adam([{"params": g["params"], "factor": g["lr_factor"], "eps": g.get("eps", 1e-8)} for g in ob.param_groups], lr=cfg.lr)
     params = [p for g in opt.param_groups for p in g["params"]]
     path = Path(checkpoint_dir or cache_dir("checkpoints")) / f"{ob.name}_partial_{ob.key}.pt"
     rng = np.random.default_rng(cfg.seed)

@@ -17,14 +17,17 @@ TRAIN_DEFAULTS = dict(
     lr_output_factor=1.0,  # the output layer's learning rate relative to train.lr
     kext_ramp_epochs=100,  # epochs over which k_ext rises to its cap (GAPS Eq. 16)
     hidden_init_std=0.1,  # GRU state drawn from N(0, std^2) in training
-    beta_range=(0.5, 2.0, 2.0, 2.0),  # beta_k ~ U(-r_k, r_k) on the first len(beta_range) components
+    beta_range=(2.0, 2.0, 2.0, 2.0),  # beta_k ~ U(-r_k, r_k) on the first len(beta_range) components (the code)
+    output_adam_eps=1e-8,  # Adam's eps for the output layer (torch's default; the code's Keras default is 1e-7)
+    exclude_motions=(),  # motions of the training dataset left out of GAPS's training windows
 )
 METHOD_DEFAULTS = dict(
     skinning="rbf",  # rbf | nearest | smoothed
     rbf_k=0.25,
     smooth_iterations=10,
-    trainable_weights=True,
-    shape_blendshape=False,  # SNUG: the garment copies the body's shape blend shape at the nearest vertex
+    trainable_weights=False,  # the code trains them; frozen here (methods/gaps/README.md)
+    shape_transfer="rbf",  # none (the paper) | nearest (SNUG) | rbf: the body's shape blend shape at the garment
+    normalisation="code",  # code: per-frame terms / (B x W), collision and inertia / B | batch: every term / B
     inextensibility_weight=2e8,
     kext="collision",  # collision | one
     collision_weight=250.0,
@@ -46,7 +49,8 @@ OPTIMUM_DEFAULTS = dict(
     history=20,  # L-BFGS correction pairs
     kext_epoch=None,  # the training epoch whose k_ext the loss uses; None: the end of train.kext_ramp_epochs (its final value)
 )
-CHOICES = dict(skinning=("rbf", "nearest", "smoothed"), collision_distance=("surface", "vertex"), kext=("collision", "one"), bending=("blend", "flat", "template"))
+CHOICES = dict(skinning=("rbf", "nearest", "smoothed"), shape_transfer=("none", "nearest", "rbf"), normalisation=("code", "batch"),
+               collision_distance=("surface", "vertex"), kext=("collision", "one"), bending=("blend", "flat", "template"))  # fmt: skip
 
 
 def gaps_params(cfg: Mapping[str, Any] | None) -> dict:

@@ -1,5 +1,7 @@
 """GAPS's loss terms: each is a :mod:`drapebench.physics` energy times its weight, summed over the
-batch's frames and divided by the batch size B (as the GAPS code).
+batch's frames and divided by a count ``n``: :func:`loss_terms` divides per ``normalisation`` (the GAPS
+code's "code": strain, bending, gravity and inextensibility by the B x W frames, collision and inertia by
+the B windows; "batch": every term by B).
 
 Shapes: x (B*W, V, 3) draped vertices of B windows of W frames (m); ``nn`` where each vertex meets
 the body: ``.point`` (B*W, V, 3), unit ``.normal`` (B*W, V, 3) and signed ``.distance`` (B*W, V) m
@@ -23,19 +25,19 @@ from drapebench.physics import (
 
 
 def strain(x: torch.Tensor, topo, material, batch_size: int) -> torch.Tensor:
-    """StVK membrane energy (J) per window."""
+    """StVK membrane energy (J) summed over x's frames, divided by ``batch_size``."""
     return stvk_energy(x, topo, material).sum() / batch_size
 
 
 def bending(x: torch.Tensor, topo, material, batch_size: int, mode: str = "blend", blend: torch.Tensor | None = None) -> torch.Tensor:
-    """Bending energy (J) per window against flat (``mode`` "flat"), template ("template") or, for "blend",
+    """Bending energy (J) summed over x's frames, divided by ``batch_size``, against flat (``mode`` "flat"), template ("template") or, for "blend",
     rest angles blended per hinge edge by ``blend`` (E,) in [0, 1] (GAPS Eq. 12)."""
     rest_angle = "template" if mode == "template" else "flat"
     return bending_energy(x, topo, material, rest_angle=rest_angle, blend=blend if mode == "blend" else None).sum() / batch_size
 
 
 def gravity(x: torch.Tensor, topo, material, batch_size: int) -> torch.Tensor:
-    """Gravitational potential energy (J) per window."""
+    """Gravitational potential energy (J) summed over x's frames, divided by ``batch_size``."""
     return gravity_energy(x, topo, material).sum() / batch_size
 
 
@@ -51,32 +53,41 @@ def inertia(xw: torch.Tensor, topo, material) -> torch.Tensor:
     return inertia_energy(xw[:, -1], x1, (x1 - x0) / material.dt, topo, material).sum() / xw.shape[0]
 
 
+PAPER_KEXT_EPOCHS = 100  # GAPS Eq. 16: k_ext = 1 + min(10 d_c, 0.03) min(epoch, 100), at most 4
+
+
 def extension_factor(distance: torch.Tensor, epoch: int, mode: str, eps: float, ramp_epochs: int) -> torch.Tensor:
-    """k_ext per vertex (B*W, V) from the signed body distance (m): GAPS Eq. 16 for ``mode`` "collision",
-    1 everywhere for "one" (a (1,) tensor)."""
+    """k_ext per vertex (B*W, V) from the signed body distance (m): GAPS Eq. 16 for ``mode`` "collision"
+    with the paper's 100-epoch ramp compressed into ``ramp_epochs`` (the same cap, 4, reached at
+    ``ramp_epochs``), 1 everywhere for "one" (a (1,) tensor)."""
     if mode == "collision":
-        return collision_aware_kext(distance, epoch, eps, ramp_epochs=ramp_epochs)
+        paper_epoch = PAPER_KEXT_EPOCHS * min(epoch, ramp_epochs) / ramp_epochs
+        return collision_aware_kext(distance, paper_epoch, eps, ramp_epochs=PAPER_KEXT_EPOCHS)
     return torch.ones(1, dtype=distance.dtype, device=distance.device)
 
 
 def inextensibility(x: torch.Tensor, topo, k_ext: torch.Tensor, batch_size: int, weight: float) -> torch.Tensor:
-    """weight x collision-aware inextensibility energy (m^6) per window with extension factor ``k_ext``."""
+    """weight x collision-aware inextensibility energy (m^6) summed over x's frames, divided by ``batch_size``,
+    with extension factor ``k_ext``."""
     return weight * inextensibility_energy(x, topo, k_ext).sum() / batch_size
 
 
 def loss_terms(x: torch.Tensor, window: int, nn, topo, material, p: dict, epoch: int, blend: torch.Tensor) -> tuple[dict, torch.Tensor | None]:
     """GAPS's named, weighted loss terms of one batch x (B*W, V, 3) under parameters ``p``
-    (:func:`methods.gaps.config.gaps_params`) at ``epoch``; also k_ext (None without inextensibility)."""
+    (:func:`methods.gaps.config.gaps_params`) at ``epoch``; also k_ext (None without inextensibility).
+    ``p["normalisation"]`` "code" divides the per-frame terms by the B x W frames and collision and inertia by
+    the B windows (the public code); "batch" divides every term by B."""
     B = x.shape[0] // window
+    frames = B * window if p["normalisation"] == "code" else B
     terms = {
-        "strain": strain(x, topo, material, B),
-        "bending": bending(x, topo, material, B, p["bending"], blend),
-        "gravity": gravity(x, topo, material, B),
+        "strain": strain(x, topo, material, frames),
+        "bending": bending(x, topo, material, frames, p["bending"], blend),
+        "gravity": gravity(x, topo, material, frames),
         "collision": collision(x, nn, B, p["collision_weight"], p["collision_eps"]),
         "inertia": inertia(x.reshape(B, window, *x.shape[1:]), topo, material),
     }
     k_ext = None
     if p["inextensibility_weight"] > 0:
         k_ext = extension_factor(nn.distance, epoch, p["kext"], p["collision_eps"], p["train"]["kext_ramp_epochs"])
-        terms["inext"] = inextensibility(x, topo, k_ext, B, p["inextensibility_weight"])
+        terms["inext"] = inextensibility(x, topo, k_ext, frames, p["inextensibility_weight"])
     return terms, k_ext

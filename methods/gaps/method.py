@@ -24,7 +24,7 @@ from methods.base import DrapeResult, DrapingMethod, FitReport
 from methods.gaps import losses
 from methods.gaps.config import gaps_params
 from methods.gaps.network import GapsNet
-from methods.gaps.skinning import rbf_weights, smoothed_weights
+from methods.gaps.skinning import rbf_shapedirs, rbf_weights, smoothed_weights
 
 
 def root_velocity(seq) -> torch.Tensor:
@@ -56,6 +56,7 @@ class GAPS(DrapingMethod):
         self.template = garment.vertices.to(body.dtype)
         self.topology = garment.topology
         self.nn_rest = nearest_body_vertices(self.template, body, garment.betas)
+        self.shape_dirs = self._shape_dirs(rest_body)
         if p["skinning"] == "rbf":
             w = rbf_weights(self.template, rest_body, body.weights, p["rbf_k"])
         else:
@@ -83,12 +84,22 @@ class GAPS(DrapingMethod):
         x = torch.cat([betas[:, None].expand(B, T, -1), poses.reshape(B, T, -1), vel], -1)
         return (x - self.input_mean) / self.input_std if self.p["normalize_inputs"] else x
 
+    def _shape_dirs(self, rest_body: torch.Tensor) -> torch.Tensor | None:
+        """(V, 3, S) m per unit beta: the body's shape blend shapes on the garment per ``shape_transfer``
+        (nearest: the nearest body vertex's, SNUG; rbf: averaged by GAPS's body participation), None for none."""
+        mode = self.p["shape_transfer"]
+        if mode == "nearest":
+            return self.body.shapedirs[self.nn_rest]
+        if mode == "rbf":
+            return rbf_shapedirs(self.template, rest_body, self.body.shapedirs, self.p["rbf_k"])
+        return None
+
     def _canonical(self, delta: torch.Tensor, betas: torch.Tensor) -> torch.Tensor:
-        """Template + displacements (B, T, V, 3) (+ the body's shape blend shape for SNUG-like)."""
+        """Template + displacements delta (B, T, 3V) m -> (B, T, V, 3) m, plus the body's shape blend shape
+        for betas (B, S) away from the garment's own shape unless ``shape_transfer`` is none."""
         x = self.template + delta.reshape(*delta.shape[:2], -1, 3)
-        if self.p["shape_blendshape"]:
-            dirs = self.body.shapedirs[self.nn_rest]  # (V, 3, S)
-            x = x + torch.einsum("vcs,bs->bvc", dirs, betas - self.garment_betas)[:, None]
+        if self.shape_dirs is not None:
+            x = x + torch.einsum("vcs,bs->bvc", self.shape_dirs, betas - self.garment_betas)[:, None]
         return x
 
     # ------------------------------------------------------------------ training
@@ -104,9 +115,7 @@ class GAPS(DrapingMethod):
         self._setup(data.garment)
         if len(tp["beta_range"]) > self.body.n_betas:
             raise ValueError(f"method.params.train.beta_range has {len(tp['beta_range'])} entries but the body has {self.body.n_betas} betas")
-        seqs = data.train_sequences
-        if not seqs:
-            raise ValueError("gaps needs training sequences (train.dataset)")
+        seqs = self._training_sequences(data.train_sequences)
         W = tp["window"]
         self._windows = [(i, t) for i, s in enumerate(seqs) for t in range(1, s.n_frames - W + 1)]
         self._poses = [s.poses.to(self.body.dtype) for s in seqs]
@@ -117,13 +126,27 @@ class GAPS(DrapingMethod):
             self.input_mean[self.body.n_betas :] = allx.mean(0)
             self.input_std[self.body.n_betas :] = allx.std(0).clamp_min(1e-3)
         body_params = list(self.net.gru.parameters()) + ([self.weights] if self.weights.requires_grad else [])
-        groups = [{"params": body_params, "lr_factor": 1.0}, {"params": list(self.net.out.parameters()), "lr_factor": tp["lr_output_factor"]}]
+        groups = [{"params": body_params, "lr_factor": 1.0},
+                  {"params": list(self.net.out.parameters()), "lr_factor": tp["lr_output_factor"], "eps": tp["output_adam_eps"]}]  # fmt: skip
         key = content_hash(self.p, budget, self.garment_key, dict(self.body.state_dict()), self.body.parents, data.material,
                            [(s.betas, s.poses, s.trans, s.fps) for s in seqs])  # fmt: skip
         objective = Objective("gaps", groups, len(self._windows), self._batch, self._loss_terms, key)
         res = train(objective, budget, log_dir=log_dir)
         return FitReport(train_s=res.train_s, n_steps=res.n_steps, final_losses=res.history[-1] if res.history else {},
                          history=res.history, resumed_from=res.resumed_from)  # fmt: skip
+
+    def _training_sequences(self, seqs: list) -> list:
+        """The training dataset's sequences less those of ``train.exclude_motions``; raises ValueError naming an
+        excluded motion the dataset lacks, or when nothing is left."""
+        exclude = set(self.p["train"]["exclude_motions"])
+        unknown = exclude - {s.motion for s in seqs}
+        if unknown:
+            raise ValueError(f"method.params.train.exclude_motions names {sorted(unknown)}, which the training dataset does not hold "
+                             f"(it has {sorted({s.motion for s in seqs})})")  # fmt: skip
+        kept = [s for s in seqs if s.motion not in exclude]
+        if not kept:
+            raise ValueError("gaps needs training sequences (train.dataset), and train.exclude_motions leaves none")
+        return kept
 
     def _batch(self, items: np.ndarray, at) -> tuple:
         """Windows ``items`` of the training data: random body shapes (B, S), poses (B, W, J, 3), root

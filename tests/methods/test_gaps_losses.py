@@ -65,8 +65,10 @@ def test_each_term_is_its_physics_energy_times_its_weight(sheet, plane):
     nn = near(x, plane)
     assert (nn.distance < EPS).any()
     assert_weighted(lambda y: losses.collision(y, nn, B, 250.0, EPS), x, lambda y: collision_energy(y, nn.point, nn.normal, EPS), 250.0, B)
-    k = losses.extension_factor(nn.distance, 2, "collision", EPS, 3)
-    assert torch.equal(k, collision_aware_kext(nn.distance, 2, EPS, ramp_epochs=3)) and k.max() > 1.0
+    k = losses.extension_factor(nn.distance, 2, "collision", EPS, 3)  # two thirds of the way: the paper's epoch 66.7
+    assert torch.allclose(k, collision_aware_kext(nn.distance, 200 / 3, EPS, ramp_epochs=100)) and k.max() > 1.0
+    deep = nn.distance < EPS - 3e-3  # d_c past 0.03 / 10: k_ext at the paper's cap, 4, once the ramp is over
+    assert deep.any() and torch.allclose(losses.extension_factor(nn.distance, 5, "collision", EPS, 3)[deep], torch.tensor(4.0, dtype=x.dtype))
     assert torch.equal(losses.extension_factor(nn.distance, 2, "one", EPS, 3), torch.ones(1, dtype=x.dtype))
     assert_weighted(lambda y: losses.inextensibility(y, topo, k, B, 2e8), x, lambda y: inextensibility_energy(y, topo, k), 2e8, B)
     xw = x.reshape(B, W, *rest.shape)
@@ -80,11 +82,20 @@ def test_loss_terms_assembles_the_terms_of_the_parameters(sheet, plane):
     nn = near(x, plane)
     blend = torch.linspace(0, 1, topo.hinge_edges.shape[0], dtype=x.dtype)
     p = gaps_params({"train": {"kext_ramp_epochs": 3}})
+    assert p["normalisation"] == "code"
     terms, k = losses.loss_terms(x, W, nn, topo, MAT, p, 1, blend)
     assert list(terms) == ["strain", "bending", "gravity", "collision", "inertia", "inext"]
+    # the public code: per-frame terms over the B x W frames, collision and inertia over the B windows
     assert torch.equal(terms["collision"], losses.collision(x, nn, B, p["collision_weight"], EPS))
-    assert torch.equal(terms["inext"], losses.inextensibility(x, topo, k, B, p["inextensibility_weight"]))
-    assert torch.equal(terms["bending"], losses.bending(x, topo, MAT, B, "blend", blend))
+    assert torch.equal(terms["inertia"], losses.inertia(x.reshape(B, W, *x.shape[1:]), topo, MAT))
+    assert torch.equal(terms["inext"], losses.inextensibility(x, topo, k, B * W, p["inextensibility_weight"]))
+    assert torch.equal(terms["bending"], losses.bending(x, topo, MAT, B * W, "blend", blend))
+    for name in ("strain", "gravity"):
+        assert torch.equal(terms[name], getattr(losses, name)(x, topo, MAT, B * W))
+    per_batch, _ = losses.loss_terms(x, W, nn, topo, MAT, {**p, "normalisation": "batch"}, 1, blend)
+    for name in terms:
+        ratio = W if name in ("strain", "bending", "gravity", "inext") else 1
+        assert torch.allclose(per_batch[name], ratio * terms[name]), name
     terms, k = losses.loss_terms(x, W, nn, topo, MAT, gaps_params({"inextensibility_weight": 0.0}), 1, blend)
     assert "inext" not in terms and k is None
 

@@ -179,3 +179,19 @@ def test_an_epoch_evaluation_runs_after_every_epoch_and_survives_a_resume(tmp_pa
     resumed = train(objective, BUDGET, log_dir=tmp_path / "b", checkpoint_dir=tmp_path / "b" / "ckpt")
     assert resumed.resumed_from is not None
     assert [e["step"] for e in resumed.evaluations] == [e["step"] for e in whole.evaluations]
+
+
+def test_a_group_s_adam_eps_makes_its_steps_proportional_to_the_gradient(tmp_path):
+    """With eps far above the gradient, Adam's step is about lr x g / eps (a small gradient moves its weight
+    little); with torch's eps every weight moves by about lr, whatever its gradient."""
+    budget = {**BUDGET, "steps": 1, "ema_decay": 0.0, "grad_clip": None}
+    moved = {}
+    for eps in (None, 1e3):
+        objective, (w, v) = toy()
+        if eps is not None:
+            objective.param_groups[1]["eps"] = eps
+        train(objective, budget, checkpoint_dir=tmp_path / str(eps))
+        moved[eps] = v.detach().abs().max().item()
+    lr_v = BUDGET["lr"] * 0.5
+    assert moved[None] == pytest.approx(lr_v, rel=1e-3)  # Adam's first step: lr per weight
+    assert moved[1e3] < 1e-2 * lr_v
