@@ -26,7 +26,7 @@ from omegaconf import DictConfig, OmegaConf
 from drapebench.body.dataset import dataset_hash
 from drapebench.cache import PROJECT_ROOT, Cache, atomic_write, body_key, content_hash, forcing, write_json
 from drapebench.errors import DrapeFailed, NonFiniteDrape
-from drapebench.results import environment, git_commit, headline, write_prediction
+from drapebench.results import METRICS, environment, git_commit, headline, write_prediction
 from drapebench.schema import check_keys
 from drapebench.train.checkpoint import write_losses
 
@@ -338,6 +338,9 @@ def _run(cfg: DictConfig, out: Path) -> dict:
         raise NonFiniteDrape(cfg.method.name, torch.nonzero(bad).squeeze(1).tolist(), seq.n_frames)
     t = time.perf_counter()
     summary, frames = _evaluate(cfg, garment, seq, body, result.vertices, reference, material)
+    for variant, drape in method.scored_variants(seq, result).items():  # the same metrics, suffixed @variant
+        scored = _evaluate(cfg, garment, seq, body, drape, reference, material)[0]
+        summary.update({f"{k}@{variant}": v for k, v in scored.items() if k in METRICS})
     stages["eval_s"] = time.perf_counter() - t
     record = {
         "method": cfg.method.name, "garment": cfg.garment.kind, "motion": m.name, "body": cfg.body.name,

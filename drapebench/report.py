@@ -28,6 +28,7 @@ TABLES = {
     "baseline": (["eps_e", "eps_a", "eps_c"], "garment"),
     "gaps_table1": (["eps_e", "eps_a", "eps_c"], "garment"),
     "gaps_table2": (["eps_c"], "garment"),
+    "gaps_heldout": (["vertex_error_mm", "vertex_error_mm@untrained", "eps_c", "eps_c@postprocessed"], "shape"),
     "gaps_table3": (["eps_e", "eps_a"], "shape"),
     "runtime": (["train_s", "ms_per_frame"], "garment"),
     "physics": (["eps_e", "eps_c", "penetration_mm", "jitter", "smoothness"], "garment"),

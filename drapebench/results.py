@@ -52,14 +52,20 @@ METRICS = {
 
 
 def metric_label(name: str) -> str:
-    """Table label of a metric column (the name itself when it is not in :data:`METRICS`)."""
-    return METRICS[name].label if name in METRICS else name
+    """Table label of a metric column (the name itself when it is not in :data:`METRICS`); a variant's
+    ``<metric>@<variant>`` (:attr:`methods.base.DrapeResult.variants`) is the metric's label with the variant."""
+    base, _, variant = name.partition("@")
+    label = METRICS[base].label if base in METRICS else base
+    return f"{label} [{variant}]" if variant else label
 
 
 def legend(names) -> str:
     """One line explaining the metrics among ``names`` (meaning, unit, better) and where they are defined
     ("" when none of them is a metric)."""
-    parts = [f"{n}: {METRICS[n].meaning} ({METRICS[n].unit}, {METRICS[n].better})" for n in dict.fromkeys(names) if n in METRICS]
+    bases = dict.fromkeys(n.partition("@")[0] for n in names)
+    parts = [f"{n}: {METRICS[n].meaning} ({METRICS[n].unit}, {METRICS[n].better})" for n in bases if n in METRICS]
+    if parts and any("@" in n for n in names):
+        parts.append("[v]: the same metric of the method's variant v of its drape (e.g. after a post-processing; the method's README)")
     return "Legend: " + "; ".join(parts) + ". Definitions: docs/metrics.md." if parts else ""
 
 

@@ -77,6 +77,11 @@ class DrapingMethod(ABC):
     def drape(self, garment, seq) -> DrapeResult:
         """Drape ``garment`` over body sequence ``seq``; inference only, returns (T, V, 3) vertices."""
 
+    def scored_variants(self, seq, result: DrapeResult) -> dict[str, torch.Tensor]:
+        """Other drapes (T, V, 3) m of the same frames that a run scores beside ``result.vertices`` with the same
+        metrics (metrics.json: ``<metric>@<name>``), computed outside the drape's timing; none by default."""
+        return {}
+
     def settings_key(self) -> Any:
         """Settings a trained state depends on beyond ``cfg`` (code defaults resolved), part of the checkpoint
         key so that changing a default retrains; None (the default) when ``cfg`` says it all."""

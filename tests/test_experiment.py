@@ -492,3 +492,14 @@ def test_a_shipped_motion_written_in_amass_layout_drapes_as_the_original(tmp_pat
     b = pd.read_csv(tmp_path / "amass" / "frames.csv").set_index("frame").loc[a.index]  # the original skips its transition
     for column in ("eps_e", "eps_a", "eps_c", "penetration_mm", "max_strain"):
         assert np.allclose(a[column], b[column], rtol=1e-4, atol=1e-4), column
+
+
+def test_a_method_s_scored_variants_get_the_same_metrics_suffixed_with_their_name(tmp_path, monkeypatch):
+    from drapebench.experiment import run
+    from drapebench.results import legend, metric_label
+    from methods.lbs.method import LBSMethod
+
+    monkeypatch.setattr(LBSMethod, "scored_variants", lambda self, seq, result: {"lifted": result.vertices + torch.tensor([0.0, 0.0, 0.05])})
+    rec = run(_compose([*FAST, "viz=none"]), tmp_path / "run")
+    assert rec["eps_c@lifted"] != rec["eps_c"] and "eps_e@lifted" in rec and not any(k.endswith("@lifted") and k.startswith("ms_") for k in rec)
+    assert metric_label("eps_c@lifted") == "ε_c (%) [lifted]" and "variant" in legend(["eps_c@lifted"])

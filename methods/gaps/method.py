@@ -213,7 +213,8 @@ class GAPS(DrapingMethod):
 
     # ------------------------------------------------------------------ inference
     def drape(self, garment, seq) -> DrapeResult:
-        """Drape all frames: one GRU pass (state carried, zeros at start), the output layer and skinning batched over frames."""
+        """Drape all frames: one GRU pass (state carried, zeros at start), the output layer and skinning batched over
+        frames, then the collision push-out if ``collision_postprocess`` (``extras["raw"]``: the drape before it)."""
         self._require_bound()
         if self.net is None:
             raise RuntimeError("gaps: not trained; call fit() or load_state_dict() first")
@@ -237,12 +238,26 @@ class GAPS(DrapingMethod):
         t3 = time.perf_counter()
         ms = lambda a, b: (b - a) * 1e3  # noqa: E731
         timings = {"setup": ms(t_setup, t0), "body": ms(t0, t1), "network": ms(t1, t2), "skinning": ms(t2, t3)}
-        if self.p["collision_postprocess"]:  # SNUG's in-graph fix: push out along the body normal
-            bv, bn = seq.vertices(self.body).to(x.dtype), seq.vertex_normals(self.body).to(x.dtype)
-            nn = self._body_contact(x, bv, bn)
-            x = x + torch.relu(self.p["collision_eps"] - nn.distance)[..., None] * nn.normal
+        if self.p["collision_postprocess"]:  # SNUG's in-graph fix
+            pushed = self._push_out(x, seq)
             timings["postprocess"] = ms(t3, time.perf_counter())
+            return DrapeResult(pushed, timings, {"raw": x})
         return DrapeResult(x, timings)
+
+    def scored_variants(self, seq, result: DrapeResult) -> dict:
+        """The drape on the other side of the collision push-out, scored beside the drape (the paper scores
+        before it): "postprocessed" (T, V, 3) m, or "raw", the network's drape, under ``collision_postprocess``."""
+        if self.p["collision_postprocess"]:
+            return {"raw": result.extras["raw"]}
+        with torch.no_grad():
+            return {"postprocessed": self._push_out(result.vertices, seq)}
+
+    def _push_out(self, x: torch.Tensor, seq) -> torch.Tensor:
+        """SNUG's collision post-processing: each vertex of the drape x (T, V, 3) m of ``seq`` moved out along the
+        body's normal by max(collision_eps - d, 0), d its signed distance (m) to the posed body."""
+        bv, bn = seq.vertices(self.body).to(x.dtype), seq.vertex_normals(self.body).to(x.dtype)
+        nn = self._body_contact(x, bv, bn)
+        return x + torch.relu(self.p["collision_eps"] - nn.distance)[..., None] * nn.normal
 
     def _sequence_betas(self, seq) -> torch.Tensor:
         """(1, S) the sequence's shape coefficients, zero-padded to the body's S (a sequence may give fewer)."""

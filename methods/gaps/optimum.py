@@ -59,5 +59,9 @@ class GapsOptimum(GAPS):
         ms = lambda a, b: (b - a) * 1e3  # noqa: E731
         return DrapeResult(res.vertices, {"setup": ms(t0, t1), "skinning": ms(t1, t2), "optimum": ms(t2, t3)}, {"start": start})
 
+    def scored_variants(self, seq, result: DrapeResult) -> dict:
+        """GAPS's untrained skinning (network output zero) the optimum starts from, "untrained" (T, V, 3) m."""
+        return {"untrained": result.extras["start"]}
+
     state_dict = DrapingMethod.state_dict  # nothing learned: no checkpoint
     load_state_dict = DrapingMethod.load_state_dict

@@ -211,6 +211,10 @@ def test_collision_postprocess_only_when_asked(scene):
     moved = (fixed.vertices - raw.vertices).norm(dim=-1) > 0
     assert moved.any() and not moved[d_raw > 2e-3 + 1e-6].any()  # only vertices within eps of the body move
     assert (d_fix < 0).sum() <= (d_raw < 0).sum()
+    # each drape is scored beside the other: the push-out's result for the paper's drape, and back
+    assert torch.equal(m.scored_variants(seq, fixed)["raw"], raw.vertices)
+    m.p["collision_postprocess"] = False
+    assert torch.equal(m.scored_variants(seq, raw)["postprocessed"], fixed.vertices)
 
 
 def _set_up(body, g, cfg):
