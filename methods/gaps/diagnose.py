@@ -1,0 +1,75 @@
+"""Print what GAPS's training loss sees on a batch of training windows: every weighted term, its value and
+its gradient per vertex (N), at the untrained skinning (network output zero) or a trained checkpoint's drape.
+
+    python -m methods.gaps.diagnose --garment tshirt --body anny_lowres             # train=cpu's GAPS keys
+    python -m methods.gaps.diagnose --garment tshirt --budget paper --epoch 100 --windows 16
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+import pandas as pd
+import torch
+from omegaconf import OmegaConf
+
+import methods
+from drapebench.body import load_body
+from drapebench.body.dataset import build_dataset
+from drapebench.body.skinning import skin_then_translate
+from drapebench.cache import PROJECT_ROOT
+from drapebench.data import H5Sequences, TrainData
+from drapebench.diagnose import term_table
+from drapebench.garments import make_garment
+from drapebench.physics import Material
+from drapebench.train.trainer import Step
+
+
+def budget_params(budget: str) -> dict:
+    """GAPS's ``method.params`` under a training preset: conf/method/gaps.yaml's params with the preset's
+    conf/method/gaps_budget/<budget>.yaml (if any) merged over its ``train`` keys."""
+    base = OmegaConf.to_container(OmegaConf.load(PROJECT_ROOT / "conf/method/gaps.yaml"))["params"]
+    path = PROJECT_ROOT / f"conf/method/gaps_budget/{budget}.yaml"
+    if path.exists():
+        base["train"].update(OmegaConf.to_container(OmegaConf.load(path)))
+    return base
+
+
+def diagnose(garment: str, body: str, budget: str = "cpu", epoch: int | None = None, windows: int = 8, seed: int = 0) -> pd.DataFrame:
+    """The term table (:func:`drapebench.diagnose.term_table`) of GAPS's loss on ``windows`` random training
+    windows of ``train_small`` (random shapes as in training) at the untrained skinning, k_ext at ``epoch``
+    (None: the end of the budget's ramp)."""
+    params = budget_params(budget)
+    m = methods.get("gaps")(params)
+    b = load_body(body)
+    g = make_garment(garment, b)
+    data = TrainData(body=b, material=Material(), garment=g, load_train=lambda: H5Sequences(build_dataset("train_small")))
+    m.fit(data, {"epochs": 0, "seed": seed})  # the model's constants and training windows, no step
+    at = Step(0, m.p["train"]["kext_ramp_epochs"] if epoch is None else epoch, np.random.default_rng(seed))
+    betas, pose, vel, tr, out, normals = m._batch(at.rng.choice(len(m._windows), windows, replace=False), at)
+    W = m.p["train"]["window"]
+    with torch.no_grad():
+        delta = torch.zeros(len(betas), W, 3 * g.n_vertices, dtype=b.dtype)
+        x = skin_then_translate(m._canonical(delta, betas).reshape(len(betas) * W, -1, 3), m.weights, out.transforms, tr.reshape(-1, 3))
+    return term_table(lambda y: m._terms(y, out.vertices, normals, at.epoch), x)
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0], formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
+    ap.add_argument("--garment", default="tshirt")
+    ap.add_argument("--body", default="anny_lowres")
+    ap.add_argument("--budget", default="cpu", help="training preset whose GAPS keys apply (conf/method/gaps_budget/)")
+    ap.add_argument("--epoch", type=int, default=None, help="epoch of k_ext (default: the end of the ramp)")
+    ap.add_argument("--windows", type=int, default=8, help="training windows in the batch")
+    ap.add_argument("--seed", type=int, default=0)
+    a = ap.parse_args(argv)
+    torch.set_num_threads(1)
+    table = diagnose(a.garment, a.body, a.budget, a.epoch, a.windows, a.seed)
+    print(f"GAPS loss terms on {a.windows} training windows, {a.garment} on {a.body}, budget {a.budget}, untrained skinning")
+    print("value: per the budget's normalisation (the code: J per frame; collision and inertia per window); grad_*: norm of d term / d x per vertex and frame drape, N")
+    print(table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+
+
+if __name__ == "__main__":
+    main()
