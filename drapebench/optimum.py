@@ -14,12 +14,17 @@ solved, its optimum afterwards.
 
 from __future__ import annotations
 
+import logging
 import math
+import time
 from dataclasses import dataclass, field
 from typing import Callable
 
 import torch
 
+from drapebench.progress import progress
+
+log = logging.getLogger("drapebench")
 WindowLoss = Callable[[int, torch.Tensor], tuple[torch.Tensor, dict[str, torch.Tensor]]]
 SOLVERS = ("lbfgs", "adam")
 
@@ -72,10 +77,12 @@ def optimise_sequence(loss: WindowLoss, start: torch.Tensor, window: int, solver
                       lr: float = 1.0, history: int = 20) -> Optimum:  # fmt: skip
     """The optimum of ``loss`` (module docstring) over a sequence: frame t minimised from start[t] with the
     ``window`` - 1 frames before it fixed; ``start`` (T, V, 3) m; the solver settings as :func:`minimise`.
-    Raises ValueError on a non-finite loss at a frame's start or optimum."""
+    Raises ValueError on a non-finite loss at a frame's start or optimum. Progress: a bar on a terminal, and
+    a log line at every tenth of the frames."""
     done: list[torch.Tensor] = []
     result = Optimum(vertices=start.new_empty(start.shape))
-    for t in range(start.shape[0]):
+    T, t0 = start.shape[0], time.perf_counter()
+    for t in progress(range(T), desc="optimum", unit="frame"):
         before = [done[max(i, 0)] if done else start[0] for i in range(t - window + 1, t)]
 
         def of(x: torch.Tensor, before=before, t=t) -> torch.Tensor:
@@ -91,6 +98,9 @@ def optimise_sequence(loss: WindowLoss, start: torch.Tensor, window: int, solver
         result.start_terms.append(start_terms)
         result.final_terms.append(final_terms)
         result.evaluations.append(n)
+        if (t + 1) % max(1, T // 10) == 0 and t + 1 < T:
+            log.info("optimum: frame %d of %d, loss %.4g -> %.4g, %.0f s", t + 1, T, sum(start_terms.values()),
+                     sum(final_terms.values()), time.perf_counter() - t0)  # fmt: skip
     return result
 
 
