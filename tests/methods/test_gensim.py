@@ -133,13 +133,31 @@ def test_pen_output_moves_outward_or_along_the_body():
 
 
 # ---------------------------------------------------------------------- losses against hand computations
-def test_restrain_term():
+def test_restrain_term_as_printed_and_as_configured():
     verts, topo = _sheet(2, 1.0)  # unit square, 5 edges
     x = verts.clone()
     x[1, 0] += 0.1  # vertex 1 moves out along x: the edges at it change
     phi = ((x[topo.edges[:, 0]] - x[topo.edges[:, 1]]).norm(dim=-1) - topo.rest_edge_lengths).abs()
-    expected = (((phi - 0.01) / 0.02) ** 2).sum() * 7.0
-    assert torch.allclose(losses.restrain(x[None], topo, 0.01, 0.02, 7.0), expected)
+    printed = (((phi - 0.01) / 0.02) ** 2).sum() * 7.0
+    assert torch.allclose(losses.restrain(x[None], topo, 0.01, 0.02, 7.0, "sum", False, None), printed)
+    z = (phi - 0.01).clamp_min(0) / 0.02
+    assert torch.allclose(losses.restrain(x[None], topo, 0.01, 0.02, 7.0, "mean", True, None), (z**2).mean() * 7.0)
+    h = 2.0  # beyond h sigmas the square goes on linearly: 2 h z - h^2
+    robust = torch.where(z <= h, z**2, 2 * h * z - h * h).mean() * 7.0
+    assert torch.allclose(losses.restrain(x[None], topo, 0.01, 0.02, 7.0, "mean", True, h), robust)
+
+
+def test_restrain_dead_zone_makes_the_rest_length_a_minimum_and_pulls_a_stretched_edge_back():
+    verts, topo = _sheet(3, 0.1)
+    at_rest = verts[None]
+    assert losses.restrain(at_rest, topo, 1e-3, 2e-3, 1.0) == 0  # printed: > 0 at rest, smallest at |dl| = mu
+    assert losses.restrain(at_rest, topo, 1e-3, 2e-3, 1.0, dead_zone=False) > 0
+    x = at_rest.clone()
+    x[0, -1, 0] += 0.01  # stretch the corner vertex 10 mm outward
+    x.requires_grad_(True)
+    value = losses.restrain(x, topo, 1e-3, 2e-3, 1.0)
+    value.backward()
+    assert value > 0 and x.grad[0, -1, 0] > 0  # descent moves it back
 
 
 def test_pin_term_and_its_gradient():
