@@ -77,6 +77,39 @@ def training_frames(method, garment_kind: str, motion: str, n_frames: int, seed:
     return graph, G, d, verts, normals
 
 
+def ring_mean(x: torch.Tensor, topology) -> torch.Tensor:
+    """Mean of each vertex's 1-ring neighbours (B, V, 3) of positions x (B, V, 3)."""
+    owner, idx = topology.ring_owner, topology.ring_idx
+    total = torch.zeros_like(x).index_add_(1, owner, x[:, idx])
+    return total / topology.ring_sizes.clamp_min(1).to(x.dtype)[None, :, None]
+
+
+def arap_health(method, garment, seq) -> dict[str, float]:
+    """The ARAP stage of ``method`` on ``garment`` over ``seq`` (its transition frames left out): mean and largest
+    edge strain (%), the largest strain of an edge between two handles (%: their targets, which ARAP keeps),
+    the largest spike (mm: a vertex's offset from its 1-ring mean, against the template's, as a single
+    pushed-out vertex makes) and the largest frame-to-frame move of a vertex (mm)."""
+    from drapebench.geometry.ops import edge_lengths
+    from methods.gensim.method import garment_graph
+
+    body = method.body
+    graph = garment_graph(garment, body, method.material)
+    betas = torch.zeros(body.n_betas, dtype=body.dtype)
+    given = seq.betas[: body.n_betas]
+    betas[: len(given)] = given.to(body.dtype)
+    G, H, *_ = method.arap_stage(graph, betas, seq.poses.to(body.dtype))
+    G, H = G[seq.n_transition :].double(), H[seq.n_transition :]
+    topo, edges = graph.topology, graph.topology.edges
+    strain = (edge_lengths(G, edges) / topo.rest_edge_lengths.double() - 1.0).abs() * 100
+    both = H[:, edges[:, 0]] & H[:, edges[:, 1]]
+    T = graph.template.double()[None]
+    spike = ((G - ring_mean(G, topo)) - (T - ring_mean(T, topo))).norm(dim=-1) * 1e3
+    move = (G[1:] - G[:-1]).norm(dim=-1) * 1e3
+    return {"strain_mean_pct": strain.mean().item(), "strain_max_pct": strain.max().item(),
+            "handle_edge_strain_max_pct": strain[both].max().item() if both.any() else 0.0,
+            "spike_max_mm": spike.max().item(), "frame_move_max_mm": move.max().item() if len(move) else 0.0}  # fmt: skip
+
+
 def report(method, graph, x, G, verts, normals, label: str) -> str:
     """The term table of :func:`term_balance` (and :func:`loss_changes` at the ARAP result) as text."""
     rows = term_balance(method, graph, x, G, verts, normals)
@@ -102,6 +135,7 @@ def main(argv=None) -> None:
     ap.add_argument("--resolution", type=float, default=0.02)
     ap.add_argument("--body", default="anny_lowres")
     ap.add_argument("--checkpoint", help="a trained gensim checkpoint (.pt) with the configured parameters")
+    ap.add_argument("--arap", action="store_true", help="instead: the ARAP stage's strain and jumps on a held-out motion (--motion, e.g. kick)")
     ap.add_argument("--set", nargs="*", default=[], help="method parameters key=value (YAML values), e.g. decoder=eq1")
     args = ap.parse_args(argv)
     import yaml
@@ -114,6 +148,16 @@ def main(argv=None) -> None:
     configured = methods.get("gensim")(cfg)
     configured.bind(body, Material())
     configured.fabric = configured._fabric()
+    if args.arap:
+        from drapebench.body import make_sequence
+        from drapebench.garments import make_garment
+
+        seq = make_sequence(args.motion, 90, seed=args.seed, transition=15)
+        garment = make_garment(args.garment, body)
+        health = arap_health(configured, garment, seq)
+        print(f"gensim ARAP stage: {args.garment} ({garment.n_vertices} vertices) on {args.body}, {args.motion} seed {args.seed} (90 frames): "
+              + ", ".join(f"{k} {v:.2f}" for k, v in health.items()))  # fmt: skip
+        return
     graph, G, d, verts, normals = training_frames(configured, args.garment, args.motion, args.frames, args.seed, args.resolution)
     print(f"gensim loss balance: {args.garment} ({len(graph.template)} vertices, {len(graph.topology.edges)} edges) on {args.body}, "
           f"{args.frames} frames of {args.motion} seed {args.seed}; mu {configured.fabric['mean']:.3g} m, sigma {configured.fabric['std']:.3g} m")  # fmt: skip

@@ -119,17 +119,37 @@ def test_paper_direction_breaks_where_n3_is_zero():
     assert ((D[~bad] * n[~bad]).sum(-1) >= -1e-6).all()
 
 
-def test_pen_output_moves_outward_or_along_the_body():
+def _tiny_pen_inputs(decoder):
     verts, topo = _sheet(6, 0.1)
     V = len(verts)
     e = topo.edges
     senders, receivers = torch.cat([e[:, 0], e[:, 1]]), torch.cat([e[:, 1], e[:, 0]])
-    net = PEN(latent=16, geometry=8, steps=2)
+    torch.manual_seed(0)
+    net = PEN(latent=16, geometry=8, steps=2, decoder=decoder)
     normal = torch.nn.functional.normalize(torch.randn(2, V, 3), dim=-1)
-    delta, (_, _, rho, w) = net(torch.randn(2, V, PEN.N_NODE), torch.randn(2, len(senders), PEN.N_EDGE), senders, receivers,
-                                verts, torch.randn(1, 30, 3), torch.randint(0, 30, (2, V)), normal)  # fmt: skip
-    assert delta.shape == (2, V, 3) and torch.isfinite(delta).all()
-    assert ((delta * normal).sum(-1) >= -1e-7).all() and (w >= 0).all()
+    inputs = (torch.randn(2, V, PEN.N_NODE), torch.randn(2, len(senders), PEN.N_EDGE), senders, receivers, verts,
+              torch.randn(1, 30, 3), torch.randint(0, 30, (2, V)), normal)  # fmt: skip
+    return net, inputs, normal
+
+
+@pytest.mark.parametrize("decoder", ["local", "eq1"])
+def test_pen_output_moves_outward_or_along_the_body(decoder):
+    net, inputs, normal = _tiny_pen_inputs(decoder)
+    delta, (_, _, _, w) = net(*inputs)
+    assert delta.shape == normal.shape and torch.isfinite(delta).all()
+    assert ((delta * normal).sum(-1) >= -1e-7).all() and (w >= 0).all()  # Eq. 1's half-space
+
+
+def test_local_decoder_leaves_zero_and_every_direction_is_learnable():
+    net, inputs, normal = _tiny_pen_inputs("local")
+    delta, _ = net(*inputs)
+    assert delta.norm(dim=-1).mean() > 1e-4  # not stuck at zero displacement: mm at initialisation
+    tangential = delta - (delta * normal).sum(-1, keepdim=True) * normal
+    assert tangential.norm(dim=-1).mean() > 1e-4
+    target = torch.randn_like(delta)  # any direction: the output layer's gradient is not vanishing
+    ((delta - target) ** 2).sum().backward()
+    assert net.decoder[-1].weight.grad.abs().sum() > 1e-3
+    assert torch.isclose(delta, net(*inputs, geometry=net.encode_geometry(inputs[4], inputs[5]))[0]).all()  # geometry encoded once
 
 
 # ---------------------------------------------------------------------- losses against hand computations
@@ -266,6 +286,38 @@ def test_a_fixed_training_body_makes_one_checkpoint_for_every_run_body(body_lowr
     assert body_key(fixed.trained_body(OtherBody())) == body_key(body_lowres)  # the checkpoint key's body
     run = OtherBody()
     assert methods.get("gensim")(TINY).trained_body(run) is run  # no train.body: trains on the run's body
+
+
+def test_diagnostic_term_balance_on_a_small_garment(body_lowres):
+    from methods.gensim.diagnose import PRINTED, loss_changes, term_balance, training_frames
+
+    configured = methods_get(TINY)
+    configured.bind(body_lowres, Material())
+    configured.fabric = configured._fabric()
+    graph, G, d, verts, normals = training_frames(configured, "skirt", "random", 2, 3, 0.04)
+    printed = methods_get({**TINY, **PRINTED})
+    printed.bind(body_lowres, Material())
+    printed.fabric = configured.fabric
+    rows, rows_printed = (term_balance(m, graph, G, G, verts, normals) for m in (configured, printed))
+    assert set(rows) == set(losses.UNSUPERVISED) and all(math.isfinite(v) for r in rows.values() for v in r.values())
+    assert rows["potential"]["grad_median"] > 0  # gravity pulls on every free vertex
+    # as printed, the restrain's pull on a vertex is (number of edges) times the per-edge mean's or more
+    n_edges = len(graph.topology.edges)
+    assert rows_printed["restrain"]["grad_median"] > 0.5 * n_edges * rows["restrain"]["grad_median"] > 0
+    changes = loss_changes(configured, graph, G, verts, normals)
+    assert math.isfinite(changes["noise"]) and math.isfinite(changes["drop"])
+    for name in losses.UNSUPERVISED:  # a term of weight 0 is left out of Eq. 9, the others are unchanged
+        dropped = methods_get({**TINY, "weights": {name: 0.0}})
+        dropped.bind(body_lowres, Material())
+        dropped.fabric = configured.fabric
+        left = dropped.terms(graph, G, G, verts, normals)
+        assert set(left) == set(rows) - {name} and all(torch.isclose(v, torch.tensor(rows[k]["value"])) for k, v in left.items())
+
+
+def methods_get(cfg):
+    import methods
+
+    return methods.get("gensim")(cfg)
 
 
 def test_unknown_parameters_are_named():
