@@ -42,18 +42,20 @@ METHOD_DEFAULTS = dict(
     pin_rule="skinned",  # skinned | normal (Alg. 2 line 9)
     arap_steps=10,  # nitr (Alg. 1), step t = 1 / nitr
     arap_iterations=2,  # local-global ARAP iterations per step
+    handle_smoothing=0,  # rounds of averaging a handle's move with its handle neighbours' (0: Alg. 2 as printed)
+    push_smoothing=0,  # rounds of spreading the collision push to free neighbours (0: Alg. 1 line 10 as printed)
     collision_eps=0.003,  # eps_coll (Eq. 8)
     bending_rest="flat",  # flat (Eq. 4: theta^2) | template
     fabric_mean=None,  # mu_fabric (m); None: fitted by methods.gensim.fabric (cached)
     fabric_std=None,  # sigma_fabric (m)
     restrain_reduction="mean",  # Eq. 3 over the edges: mean | sum (as printed)
-    restrain_dead_zone=True,  # Eq. 3 on max(phi - mu, 0) (True) or on phi - mu as printed (False)
+    restrain_offset="dead_zone",  # Eq. 3 on max(phi - mu, 0) (dead_zone), phi - mu (printed) or phi (none)
     restrain_huber=5.0,  # sigmas beyond which Eq. 3's square continues linearly; null: square everywhere (as printed)
     weights=dict(WEIGHTS),  # gamma_1..6 (Eq. 9)
     supervised=False,  # gensim_l2: L2 to reference drapes + smoothness + collision (paper Table 2)
     train=TRAIN_DEFAULTS,
 )
-CHOICES = dict(stage=("full", "arap"), decoder=("local", "eq1"), restrain_reduction=("mean", "sum"), direction=("tangent", "paper"), handle_side=("pushed", "printed"), pin_rule=("skinned", "normal"), bending_rest=("flat", "template"))
+CHOICES = dict(stage=("full", "arap"), decoder=("local", "eq1"), restrain_reduction=("mean", "sum"), restrain_offset=("dead_zone", "printed", "none"), direction=("tangent", "paper"), handle_side=("pushed", "printed"), pin_rule=("skinned", "normal"), bending_rest=("flat", "template"))
 
 
 def gensim_params(cfg: Mapping[str, Any] | None) -> dict:

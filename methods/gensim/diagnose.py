@@ -20,7 +20,7 @@ import numpy as np
 import torch
 
 CONF = Path(__file__).resolve().parents[2] / "conf" / "method" / "gensim.yaml"  # its fitted mu_fabric, sigma_fabric
-PRINTED = {"restrain_reduction": "sum", "restrain_dead_zone": False, "restrain_huber": None}  # Eq. 3 as printed
+PRINTED = {"restrain_reduction": "sum", "restrain_offset": "printed", "restrain_huber": None}  # Eq. 3 as printed
 
 
 def term_balance(method, graph, x: torch.Tensor, G: torch.Tensor, body_vertices, body_normals) -> dict[str, dict[str, float]]:
@@ -134,7 +134,7 @@ def main(argv=None) -> None:
     ap.add_argument("--seed", type=int, default=3)
     ap.add_argument("--resolution", type=float, default=0.02)
     ap.add_argument("--body", default="anny_lowres")
-    ap.add_argument("--checkpoint", help="a trained gensim checkpoint (.pt) with the configured parameters")
+    ap.add_argument("--checkpoint", help="a trained gensim checkpoint (.pt); its parameters replace --set")
     ap.add_argument("--arap", action="store_true", help="instead: the ARAP stage's strain and jumps on a held-out motion (--motion, e.g. kick)")
     ap.add_argument("--set", nargs="*", default=[], help="method parameters key=value (YAML values), e.g. decoder=eq1")
     args = ap.parse_args(argv)
@@ -143,6 +143,9 @@ def main(argv=None) -> None:
     fitted = yaml.safe_load(CONF.read_text())["params"]
     cfg = {"fabric_mean": fitted["fabric_mean"], "fabric_std": fitted["fabric_std"]}
     cfg.update({k: yaml.safe_load(v) for k, v in (s.split("=", 1) for s in args.set)})
+    state = torch.load(args.checkpoint, map_location="cpu", weights_only=False)["method"] if args.checkpoint else None
+    if state is not None:  # the checkpoint's own parameters (its reading of the losses included)
+        cfg = state["params"]
     torch.set_num_threads(1)
     body = load_body(args.body)
     configured = methods.get("gensim")(cfg)
@@ -166,9 +169,8 @@ def main(argv=None) -> None:
     printed.fabric = configured.fabric
     print(report(printed, graph, G, G, verts, normals, "at the ARAP result, Eq. 3 as printed (sum over edges, no dead zone, no Huber)"))
     print(report(configured, graph, G, G, verts, normals, f"at the ARAP result, as configured ({', '.join(f'{k}={configured.p[k]}' for k in PRINTED)})"))
-    if args.checkpoint:
-        state = torch.load(args.checkpoint, map_location="cpu", weights_only=False)
-        configured.load_state_dict(state["method"])
+    if state is not None:
+        configured.load_state_dict(state)
         with torch.no_grad():
             x, delta = configured.pen(graph, G, d, verts, normals, torch.zeros(len(G), body.n_betas, dtype=body.dtype))
         moved = delta.norm(dim=-1).flatten() * 1e3

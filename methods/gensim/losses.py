@@ -23,14 +23,17 @@ UNSUPERVISED = ("restrain", "bending", "pin", "potential", "smoothness", "collis
 SUPERVISED = ("l2", "smoothness", "collision")  # the paper's Table 2 baseline
 
 
-def restrain(x, topo, fabric_mean: float, fabric_std: float, weight: float, reduction: str = "mean", dead_zone: bool = True,
+def restrain(x, topo, fabric_mean: float, fabric_std: float, weight: float, reduction: str = "mean", offset: str = "dead_zone",
              huber: float | None = 5.0) -> torch.Tensor:
-    """Eq. 2-3 per edge: z = (phi - mu_fabric) / sigma_fabric with phi = | |l| - |l0| | (m), or with ``dead_zone``
-    z = max(phi - mu_fabric, 0) / sigma_fabric (zero for |phi| <= mu, so the rest length is a minimum);
-    the penalty is z^2, or beyond ``huber`` (in sigmas) its linear continuation 2 h |z| - h^2; ``reduction``
-    "mean" or "sum" over the edges. The paper's printed form: reduction "sum", no dead zone, huber None."""
+    """Eq. 2-3 per edge with phi = | |l| - |l0| | (m): z = |phi - mu_fabric| / sigma_fabric (``offset`` "printed"),
+    max(phi - mu_fabric, 0) / sigma_fabric ("dead_zone": zero for phi <= mu, the rest length a minimum) or
+    phi / sigma_fabric ("none"); the penalty is z^2, or beyond ``huber`` (in sigmas) its linear continuation
+    2 h z - h^2; ``reduction`` "mean" or "sum" over the edges. As printed: "sum", "printed", huber None."""
     phi = (edge_lengths(x if x.dim() == 3 else x[None], topo.edges) - topo.rest_edge_lengths).abs()
-    z = (torch.relu(phi - fabric_mean) if dead_zone else (phi - fabric_mean).abs()) / fabric_std
+    shifted = {"printed": lambda: (phi - fabric_mean).abs(), "dead_zone": lambda: torch.relu(phi - fabric_mean), "none": lambda: phi}
+    if offset not in shifted:
+        raise ValueError(f"gensim restrain offset must be one of {sorted(shifted)}, not {offset!r}")
+    z = shifted[offset]() / fabric_std
     per_edge = z * z if huber is None else torch.where(z <= huber, z * z, 2.0 * huber * z - huber * huber)
     if reduction not in ("mean", "sum"):
         raise ValueError(f"gensim restrain reduction must be 'mean' or 'sum', not {reduction!r}")

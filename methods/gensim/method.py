@@ -70,7 +70,8 @@ class GenSim(DrapingMethod):
     def __init__(self, cfg=None):
         super().__init__(cfg)
         self.p = gensim_params(self.cfg)
-        self.arap = ArapConfig(self.p["eps"], self.p["handle_side"], self.p["pin_rule"], self.p["arap_steps"], self.p["arap_iterations"])
+        self.arap = ArapConfig(self.p["eps"], self.p["handle_side"], self.p["pin_rule"], self.p["arap_steps"], self.p["arap_iterations"],
+                               handle_smoothing=self.p["handle_smoothing"], push_smoothing=self.p["push_smoothing"])  # fmt: skip
         self.net = None
         self.fabric = None
 
@@ -91,7 +92,8 @@ class GenSim(DrapingMethod):
             pins_at = skinned_template(graph.template, graph.binding, body, graph.betas, betas, transforms)
         G, H, D = [], [], []
         for t in range(len(poses)):
-            handles, targets, d = handle_targets(graph.binding, graph.template, canonical, verts[t], normals[t], pins_at[t], self.arap)
+            handles, targets, d = handle_targets(graph.binding, graph.template, canonical, verts[t], normals[t], pins_at[t], self.arap,
+                                              graph.topology.edges)  # fmt: skip
             G.append(motion_aware_arap(graph.template, graph.topology.faces, handles, targets, verts[t], normals[t], self.arap))
             H.append(handles)
             D.append(d)
@@ -272,7 +274,7 @@ class GenSim(DrapingMethod):
         w, mat, topo = self.p["weights"], self.material, graph.topology
         make = {
             "restrain": lambda: losses.restrain(x, topo, self.fabric["mean"], self.fabric["std"], w["restrain"], self.p["restrain_reduction"],
-                                                self.p["restrain_dead_zone"], self.p["restrain_huber"]),  # fmt: skip
+                                                self.p["restrain_offset"], self.p["restrain_huber"]),  # fmt: skip
             "bending": lambda: losses.bending(x, topo, mat, w["bending"], self.p["bending_rest"]),
             "pin": lambda: losses.pin(x, G, graph.pins, w["pin"]),
             "potential": lambda: losses.potential(x, topo, mat, ~graph.pin_mask, w["potential"]),

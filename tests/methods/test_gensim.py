@@ -8,7 +8,7 @@ import torch
 from drapebench.geometry.ops import vertex_normals
 from drapebench.physics import Material
 from methods.gensim import losses
-from methods.gensim.arap import ArapConfig, bind, front_aligned, handle_targets, motion_aware_arap, skinned_template
+from methods.gensim.arap import ArapConfig, bind, front_aligned, handle_targets, motion_aware_arap, neighbour_mean, skinned_template
 from methods.gensim.network import PEN, displacement_direction, tangent_basis
 from drapebench.geometry.topology import get_topology
 from tests.meshes import grid_mesh
@@ -58,6 +58,14 @@ def test_pin_rule_normal_keeps_the_offset_along_the_target_normal():
     b = bind(template, canonical, pins)
     _, T, _ = handle_targets(b, template, canonical, target, normals, template, ArapConfig(pin_rule="normal"))
     assert torch.allclose(T[3], target[1] + normals[1] * 0.02, atol=1e-6)
+
+
+def test_neighbour_mean_averages_over_the_masked_neighbours_only():
+    values = torch.tensor([[0.0, 0, 0], [3.0, 0, 0], [6.0, 0, 0], [9.0, 0, 0]])
+    edges = torch.tensor([[0, 1], [1, 2], [2, 3]])
+    mask = torch.tensor([True, True, True, False])
+    out = neighbour_mean(values, edges, mask)
+    assert torch.allclose(out[:, 0], torch.tensor([1.5, 3.0, 4.5, 9.0]))  # vertex 3 is outside: kept, and not averaged in
 
 
 def test_arap_without_body_motion_returns_the_template(body_lowres):
@@ -159,19 +167,21 @@ def test_restrain_term_as_printed_and_as_configured():
     x[1, 0] += 0.1  # vertex 1 moves out along x: the edges at it change
     phi = ((x[topo.edges[:, 0]] - x[topo.edges[:, 1]]).norm(dim=-1) - topo.rest_edge_lengths).abs()
     printed = (((phi - 0.01) / 0.02) ** 2).sum() * 7.0
-    assert torch.allclose(losses.restrain(x[None], topo, 0.01, 0.02, 7.0, "sum", False, None), printed)
+    assert torch.allclose(losses.restrain(x[None], topo, 0.01, 0.02, 7.0, "sum", "printed", None), printed)
     z = (phi - 0.01).clamp_min(0) / 0.02
-    assert torch.allclose(losses.restrain(x[None], topo, 0.01, 0.02, 7.0, "mean", True, None), (z**2).mean() * 7.0)
+    assert torch.allclose(losses.restrain(x[None], topo, 0.01, 0.02, 7.0, "mean", "dead_zone", None), (z**2).mean() * 7.0)
+    plain = ((phi / 0.02) ** 2).mean() * 7.0
+    assert torch.allclose(losses.restrain(x[None], topo, 0.01, 0.02, 7.0, "mean", "none", None), plain)
     h = 2.0  # beyond h sigmas the square goes on linearly: 2 h z - h^2
     robust = torch.where(z <= h, z**2, 2 * h * z - h * h).mean() * 7.0
-    assert torch.allclose(losses.restrain(x[None], topo, 0.01, 0.02, 7.0, "mean", True, h), robust)
+    assert torch.allclose(losses.restrain(x[None], topo, 0.01, 0.02, 7.0, "mean", "dead_zone", h), robust)
 
 
 def test_restrain_dead_zone_makes_the_rest_length_a_minimum_and_pulls_a_stretched_edge_back():
     verts, topo = _sheet(3, 0.1)
     at_rest = verts[None]
     assert losses.restrain(at_rest, topo, 1e-3, 2e-3, 1.0) == 0  # printed: > 0 at rest, smallest at |dl| = mu
-    assert losses.restrain(at_rest, topo, 1e-3, 2e-3, 1.0, dead_zone=False) > 0
+    assert losses.restrain(at_rest, topo, 1e-3, 2e-3, 1.0, offset="printed") > 0
     x = at_rest.clone()
     x[0, -1, 0] += 0.01  # stretch the corner vertex 10 mm outward
     x.requires_grad_(True)
