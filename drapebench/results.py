@@ -47,6 +47,8 @@ METRICS = {
     "ms_per_frame": MetricInfo("ms/frame", "ms", "lower", "drape time per frame"),
     "train_s": MetricInfo("train (s)", "s", "lower", "training time"),
     "energy_j": MetricInfo("energy (J)", "J", "lower, toward the reference's", "StVK + bending + gravity energy per frame"),
+    "pen_mm": MetricInfo("PEN (mm)", "mm", "neither: how much GenSim's PEN moves its ARAP stage", "mean |PEN displacement| over vertices and frames"),
+    "pen_p99_mm": MetricInfo("PEN p99 (mm)", "mm", "neither", "99th percentile of |PEN displacement| over vertices and frames"),
     "setup_s": MetricInfo("setup (s)", "s", "lower", "one-off per-garment set-up inside the drape (not in ms/frame)"),
 }
 

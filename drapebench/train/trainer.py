@@ -4,7 +4,7 @@ A method describes its training as an :class:`Objective` (parameter groups, a ba
 already-weighted loss terms, and a key naming the run); :func:`train` runs Adam on it under a
 :class:`drapebench.schema.TrainConf` budget: learning-rate schedule, optional gradient clipping and
 weight averaging (EMA), a guard that stops on a non-finite loss term or gradient, resumable atomic
-checkpoints, a time budget, a progress bar and ``losses.csv``.
+checkpoints, a time budget, a progress bar (a log line every ``log_every`` steps without one) and ``losses.csv``.
 
 Best state: with a time budget, every checkpoint compares the mean training loss of the steps since
 the previous checkpoint with the lowest such mean so far and keeps a copy of the weights (the averaged
@@ -27,7 +27,7 @@ import torch
 
 from drapebench.cache import cache_dir
 from drapebench.errors import TrainingDiverged
-from drapebench.progress import progress
+from drapebench.progress import progress, progress_enabled
 from drapebench.schema import TrainConf
 from drapebench.train.checkpoint import load_state, remove_state, save_state, write_losses
 from drapebench.train.schedule import scheduled_lr
@@ -175,6 +175,8 @@ def train(objective: Objective, cfg: Mapping[str, Any] | TrainConf | None, log_d
         since_ckpt.append(history[-1]["loss"])
         if step % cfg.log_every == 0:
             bar.set_postfix({n: f"{v:.3g}" for n, v in history[-1].items() if n not in ("step", "epoch")})
+            if not progress_enabled():  # no bar (a log file, CI): the same figures as a log line
+                log.info("%s step %d/%d: %s", ob.name, step, total, ", ".join(f"{n} {v:.4g}" for n, v in history[-1].items() if n not in ("step", "epoch")))
         bar.update(1)
         if ob.evaluate is not None and (step % steps_per_epoch == 0 or step == total):
             with torch.no_grad():

@@ -27,7 +27,10 @@ class ArapConfig:
     pin_rule: "skinned" (pins follow the body by LBS with their closest vertex's weights, as the reference
     simulation drives them) or "normal" (Alg. 2 line 9: closest target body vertex + |u| along its normal);
     n_iterations / step (Alg. 1: 10 steps of 1/10); arap_iterations: local-global iterations per step;
-    min_motion: body motion (m) below which a vertex is no handle (its direction is undefined)."""
+    min_motion: body motion (m) below which a vertex is no handle (its direction is undefined);
+    handle_smoothing: rounds of averaging each non-pin handle's move (target - template) with its handle
+    neighbours' (0: Alg. 2 as printed, every handle placed on its own); push_smoothing: rounds of spreading
+    the collision push (Alg. 1 line 10) to the free neighbours of pushed vertices (0: as printed)."""
 
     eps: float = -0.5
     handle_side: str = "pushed"
@@ -35,12 +38,16 @@ class ArapConfig:
     n_iterations: int = 10
     arap_iterations: int = 2
     min_motion: float = 1e-4
+    handle_smoothing: int = 0
+    push_smoothing: int = 0
 
     def __post_init__(self):
         if self.handle_side not in ("pushed", "printed"):
             raise ValueError(f"gensim handle_side must be 'pushed' or 'printed', not {self.handle_side!r}")
         if self.pin_rule not in ("skinned", "normal"):
             raise ValueError(f"gensim pin_rule must be 'skinned' or 'normal', not {self.pin_rule!r}")
+        if self.handle_smoothing < 0 or self.push_smoothing < 0:
+            raise ValueError("gensim handle_smoothing and push_smoothing must be >= 0")
         if self.n_iterations < 1 or self.arap_iterations < 1:
             raise ValueError("gensim n_iterations and arap_iterations must be >= 1")
 
@@ -73,10 +80,21 @@ def bind(template: torch.Tensor, canonical_body: torch.Tensor, pins: torch.Tenso
     return Binding(nu, template - canonical_body[nu], pin)
 
 
-def handle_targets(binding: Binding, template, canonical_body, target_body, target_normals, skinned_pins, cfg: ArapConfig):
+def neighbour_mean(values: torch.Tensor, edges: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """(V, 3): each vertex's ``values`` (V, 3) averaged with those of its neighbours along ``edges`` (E, 2)
+    whose ``mask`` (V,) bool is set (a vertex outside the mask keeps its own value)."""
+    a, b = edges[:, 0], edges[:, 1]
+    keep = (mask[a] & mask[b]).to(values.dtype)[:, None]
+    total = values.clone().index_add_(0, a, values[b] * keep).index_add_(0, b, values[a] * keep)
+    count = torch.ones(len(values), dtype=values.dtype).index_add_(0, a, keep[:, 0]).index_add_(0, b, keep[:, 0])
+    return torch.where(mask[:, None], total / count[:, None], values)
+
+
+def handle_targets(binding: Binding, template, canonical_body, target_body, target_normals, skinned_pins, cfg: ArapConfig, edges=None):
     """Alg. 2: handle mask (V,) bool (pins included), target positions (V, 3) m (only handle rows are
     meaningful) and the body motion d (V, 3) m, for one front-aligned target body (Vb, 3) with its
-    normals (Vb, 3); ``skinned_pins`` (V, 3) are the template skinned to that frame (pin_rule "skinned")."""
+    normals (Vb, 3); ``skinned_pins`` (V, 3) are the template skinned to that frame (pin_rule "skinned");
+    ``edges`` (E, 2), the garment's, for ``cfg.handle_smoothing``."""
     d = target_body[binding.nu] - canonical_body[binding.nu]
     d_norm = d.norm(dim=-1)
     u_norm = binding.u.norm(dim=-1)
@@ -87,7 +105,13 @@ def handle_targets(binding: Binding, template, canonical_body, target_body, targ
     q = (binding.u * d_hat).sum(-1)
     reached = d_norm > q  # the body part has moved through the vertex's place (|d| - q > 0: line 8 moves it forward)
     handles = moving & side & reached & ~binding.pin
-    targets = template + d_hat * (d_norm - q)[:, None]
+    move = d_hat * (d_norm - q)[:, None]
+    if cfg.handle_smoothing:
+        if edges is None:
+            raise ValueError("gensim handle_smoothing needs the garment's edges")
+        for _ in range(cfg.handle_smoothing):
+            move = neighbour_mean(move, edges, handles)
+    targets = template + move
     if cfg.pin_rule == "normal":
         pin_targets = target_body[binding.nu] + target_normals[binding.nu] * u_norm[:, None]
     else:
@@ -105,6 +129,8 @@ def motion_aware_arap(template, faces, handles, targets, target_body, target_nor
     solver = arap_solver(template, faces, idx, cfg.arap_iterations)
     start, goal = template[idx].double(), targets[idx].double()
     free = ~handles
+    f = torch.as_tensor(faces).long()
+    edges = torch.unique(torch.cat([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]).sort(dim=1).values, dim=0)
     body, body_normals = target_body[None].double(), target_normals[None].double()
     tree = body_vertex_tree(body[0], candidates)  # one search structure for the frame's 10 steps
     G = template.double().numpy()
@@ -116,6 +142,11 @@ def motion_aware_arap(template, faces, handles, targets, target_body, target_nor
         zeta, n = nn.distance[0], nn.normal[0]
         push = torch.zeros_like(x)
         push[free] = torch.where((zeta <= 0)[:, None], -zeta[:, None] * n, torch.zeros_like(n))
+        inside = torch.zeros(len(x), dtype=torch.bool)
+        inside[torch.nonzero(free).squeeze(1)[zeta <= 0]] = True
+        for _ in range(cfg.push_smoothing):  # free neighbours of a pushed vertex follow part of its push
+            spread = neighbour_mean(push, edges, free)
+            push = torch.where(inside[:, None], push, torch.where(free[:, None], spread, push))
         G = (x + push).numpy()
     return torch.from_numpy(np.ascontiguousarray(G)).to(template.dtype)
 

@@ -26,28 +26,36 @@ TRAIN_DEFAULTS = dict(
     beta_std=1.0,  # body shapes: betas ~ N(0, beta_std^2) clipped to +-beta_clip on the first n_shape_betas
     beta_clip=2.0,
     n_shape_betas=4,
+    threads=1,  # torch threads while training (1: jobs that share the cores do not oversubscribe them; None: leave as set)
     schedule={},  # overrides of the budget (conf/train) for GenSim, e.g. the paper's lr 1e-4 x0.1 at epoch 20 of 30
 )
 METHOD_DEFAULTS = dict(
     latent=64,  # width of node/edge features and MLPs (a ~1 MB model, as the paper states)
     geometry=32,  # PointNet feature size per garment / body point
     steps=8,  # message-passing steps L
-    direction="tangent",  # tangent | paper (Eq. 1 as printed, b3 = (-b1 n1 - b2 n2) / n3)
-    magnitude_scale=0.01,  # displacement magnitude w = scale x softplus(raw) m
+    stage="full",  # full | arap (the motion-aware ARAP stage alone, untrained: the row PEN is measured against)
+    decoder="local",  # local (Eq. 1's half-space in the normal's local frame) | eq1 (Eq. 1's direction x magnitude)
+    direction="tangent",  # decoder eq1: tangent | paper (Eq. 1 as printed, b3 = (-b1 n1 - b2 n2) / n3)
+    magnitude_scale=0.01,  # m: the local decoder's scale, or eq1's magnitude w = scale x softplus(raw)
     eps=-0.5,  # handle threshold on tau (Alg. 2)
     handle_side="pushed",  # pushed | printed (Alg. 2 line 6 as printed)
     pin_rule="skinned",  # skinned | normal (Alg. 2 line 9)
     arap_steps=10,  # nitr (Alg. 1), step t = 1 / nitr
     arap_iterations=2,  # local-global ARAP iterations per step
+    handle_smoothing=0,  # rounds of averaging a handle's move with its handle neighbours' (0: Alg. 2 as printed)
+    push_smoothing=0,  # rounds of spreading the collision push to free neighbours (0: Alg. 1 line 10 as printed)
     collision_eps=0.003,  # eps_coll (Eq. 8)
     bending_rest="flat",  # flat (Eq. 4: theta^2) | template
     fabric_mean=None,  # mu_fabric (m); None: fitted by methods.gensim.fabric (cached)
     fabric_std=None,  # sigma_fabric (m)
+    restrain_reduction="mean",  # Eq. 3 over the edges: mean | sum (as printed)
+    restrain_offset="dead_zone",  # Eq. 3 on max(phi - mu, 0) (dead_zone), phi - mu (printed) or phi (none)
+    restrain_huber=5.0,  # sigmas beyond which Eq. 3's square continues linearly; null: square everywhere (as printed)
     weights=dict(WEIGHTS),  # gamma_1..6 (Eq. 9)
     supervised=False,  # gensim_l2: L2 to reference drapes + smoothness + collision (paper Table 2)
     train=TRAIN_DEFAULTS,
 )
-CHOICES = dict(direction=("tangent", "paper"), handle_side=("pushed", "printed"), pin_rule=("skinned", "normal"), bending_rest=("flat", "template"))
+CHOICES = dict(stage=("full", "arap"), decoder=("local", "eq1"), restrain_reduction=("mean", "sum"), restrain_offset=("dead_zone", "printed", "none"), direction=("tangent", "paper"), handle_side=("pushed", "printed"), pin_rule=("skinned", "normal"), bending_rest=("flat", "template"))
 
 
 def gensim_params(cfg: Mapping[str, Any] | None) -> dict:
@@ -58,4 +66,8 @@ def gensim_params(cfg: Mapping[str, Any] | None) -> dict:
         raise ValueError("gensim fabric_mean and fabric_std are set together (or both null to fit them)")
     if p["fabric_std"] is not None and not p["fabric_std"] > 0:
         raise ValueError(f"gensim fabric_std must be positive, got {p['fabric_std']}")
+    if p["restrain_huber"] is not None and not p["restrain_huber"] > 0:
+        raise ValueError(f"gensim restrain_huber must be positive (sigmas) or null, got {p['restrain_huber']}")
+    if p["train"]["threads"] is not None and int(p["train"]["threads"]) < 1:
+        raise ValueError(f"gensim train.threads must be >= 1 or null, got {p['train']['threads']}")
     return p

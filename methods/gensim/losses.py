@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import torch
 
+from drapebench.geometry.ops import edge_lengths
 from drapebench.geometry.proximity import nearest_body_vertex
 from drapebench.physics import (
     bending_energy,
@@ -15,7 +16,6 @@ from drapebench.physics import (
     hinge_collision_energy,
     laplacian_smoothness,
     pin_energy,
-    restrain_energy,
 )
 
 WEIGHTS = {"restrain": 1e2, "bending": 1.0, "pin": 1e2, "potential": 1e2, "smoothness": 1.0, "collision": 1e2, "l2": 1e2}
@@ -23,9 +23,21 @@ UNSUPERVISED = ("restrain", "bending", "pin", "potential", "smoothness", "collis
 SUPERVISED = ("l2", "smoothness", "collision")  # the paper's Table 2 baseline
 
 
-def restrain(x, topo, fabric_mean: float, fabric_std: float, weight: float) -> torch.Tensor:
-    """Eq. 2-3: sum over edges of ((|l - l0| - mu_fabric) / sigma_fabric)^2."""
-    return weight * restrain_energy(x, topo, fabric_mean, fabric_std).mean()
+def restrain(x, topo, fabric_mean: float, fabric_std: float, weight: float, reduction: str = "mean", offset: str = "dead_zone",
+             huber: float | None = 5.0) -> torch.Tensor:
+    """Eq. 2-3 per edge with phi = | |l| - |l0| | (m): z = |phi - mu_fabric| / sigma_fabric (``offset`` "printed"),
+    max(phi - mu_fabric, 0) / sigma_fabric ("dead_zone": zero for phi <= mu, the rest length a minimum) or
+    phi / sigma_fabric ("none"); the penalty is z^2, or beyond ``huber`` (in sigmas) its linear continuation
+    2 h z - h^2; ``reduction`` "mean" or "sum" over the edges. As printed: "sum", "printed", huber None."""
+    phi = (edge_lengths(x if x.dim() == 3 else x[None], topo.edges) - topo.rest_edge_lengths).abs()
+    shifted = {"printed": lambda: (phi - fabric_mean).abs(), "dead_zone": lambda: torch.relu(phi - fabric_mean), "none": lambda: phi}
+    if offset not in shifted:
+        raise ValueError(f"gensim restrain offset must be one of {sorted(shifted)}, not {offset!r}")
+    z = shifted[offset]() / fabric_std
+    per_edge = z * z if huber is None else torch.where(z <= huber, z * z, 2.0 * huber * z - huber * huber)
+    if reduction not in ("mean", "sum"):
+        raise ValueError(f"gensim restrain reduction must be 'mean' or 'sum', not {reduction!r}")
+    return weight * (per_edge.mean(-1) if reduction == "mean" else per_edge.sum(-1)).mean()
 
 
 def bending(x, topo, material, weight: float, rest_angle: str = "flat") -> torch.Tensor:

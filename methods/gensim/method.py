@@ -25,7 +25,7 @@ from methods.gensim.config import gensim_params
 from methods.gensim.network import PEN
 
 log = logging.getLogger("drapebench")
-PEN_CHUNK = 16  # frames per PEN pass at inference
+PEN_CHUNK = 2  # frames per PEN pass at inference (larger chunks are memory-bound on the CPU)
 FRAMES = Cache("gensim", 4)  # the ARAP stage of the training frames
 
 
@@ -70,14 +70,15 @@ class GenSim(DrapingMethod):
     def __init__(self, cfg=None):
         super().__init__(cfg)
         self.p = gensim_params(self.cfg)
-        self.arap = ArapConfig(self.p["eps"], self.p["handle_side"], self.p["pin_rule"], self.p["arap_steps"], self.p["arap_iterations"])
+        self.arap = ArapConfig(self.p["eps"], self.p["handle_side"], self.p["pin_rule"], self.p["arap_steps"], self.p["arap_iterations"],
+                               handle_smoothing=self.p["handle_smoothing"], push_smoothing=self.p["push_smoothing"])  # fmt: skip
         self.net = None
         self.fabric = None
 
     # ------------------------------------------------------------------ the two stages
     def _new_net(self) -> PEN:
         p = self.p
-        return PEN(p["latent"], p["geometry"], p["steps"], p["direction"], p["magnitude_scale"]).to(self.body.dtype)
+        return PEN(p["latent"], p["geometry"], p["steps"], p["direction"], p["magnitude_scale"], p["decoder"]).to(self.body.dtype)
 
     def arap_stage(self, graph: GarmentGraph, betas: torch.Tensor, poses: torch.Tensor):
         """ARAP-deformed garment (T, V, 3), handle masks (T, V) bool and body motion d (T, V, 3), all in the
@@ -91,15 +92,17 @@ class GenSim(DrapingMethod):
             pins_at = skinned_template(graph.template, graph.binding, body, graph.betas, betas, transforms)
         G, H, D = [], [], []
         for t in range(len(poses)):
-            handles, targets, d = handle_targets(graph.binding, graph.template, canonical, verts[t], normals[t], pins_at[t], self.arap)
+            handles, targets, d = handle_targets(graph.binding, graph.template, canonical, verts[t], normals[t], pins_at[t], self.arap,
+                                              graph.topology.edges)  # fmt: skip
             G.append(motion_aware_arap(graph.template, graph.topology.faces, handles, targets, verts[t], normals[t], self.arap))
             H.append(handles)
             D.append(d)
         return torch.stack(G), torch.stack(H), torch.stack(D), verts, normals, transforms
 
-    def pen(self, graph: GarmentGraph, G, d, body_vertices, body_normals, betas) -> tuple[torch.Tensor, torch.Tensor]:
+    def pen(self, graph: GarmentGraph, G, d, body_vertices, body_normals, betas, geometry=None) -> tuple[torch.Tensor, torch.Tensor]:
         """PEN's corrected garment G + delta (B, V, 3) and delta, for ARAP results G (B, V, 3), body motion
-        d (B, V, 3), front-aligned bodies (B, Vb, 3) with normals, and body shapes betas (B, S)."""
+        d (B, V, 3), front-aligned bodies (B, Vb, 3) with normals, and body shapes betas (B, S);
+        ``geometry``: :meth:`encode` of the garment and body shape when already computed."""
         nn = nearest_body_vertex(G, body_vertices, body_normals)
         B, V, _ = G.shape
         pin = graph.pin_mask.to(G.dtype)[None, :, None].expand(B, V, 1)
@@ -109,11 +112,17 @@ class GenSim(DrapingMethod):
         rest = graph.rest_edges[None].expand(B, -1, 3)
         arap_e = G[:, graph.receivers] - G[:, graph.senders]
         edge = torch.cat([rest, rest.norm(dim=-1, keepdim=True), arap_e, arap_e.norm(dim=-1, keepdim=True)], -1)
-        with torch.no_grad():  # one body shape for the whole batch (a sequence): encode it once
-            body_rest = self.body.shaped(betas[:1] if bool((betas == betas[:1]).all()) else betas)[0]
+        geometry = self.encode(graph, betas) if geometry is None else geometry
         index = graph.binding.nu[None].expand(B, V)
-        delta, _ = self.net(node, edge, graph.senders, graph.receivers, graph.template, body_rest, index, nn.normal)
+        delta, _ = self.net(node, edge, graph.senders, graph.receivers, graph.template, None, index, nn.normal, geometry)
         return G + delta, delta
+
+    def encode(self, graph: GarmentGraph, betas: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """PEN's PointNet features of the garment template and of the rest bodies of shapes betas (B, S) (one
+        body when every row is the same shape, as in a sequence)."""
+        with torch.no_grad():
+            body_rest = self.body.shaped(betas[:1] if bool((betas == betas[:1]).all()) else betas)[0]
+        return self.net.encode_geometry(graph.template, body_rest)
 
     # ------------------------------------------------------------------ training
     def settings_key(self) -> dict:
@@ -131,8 +140,20 @@ class GenSim(DrapingMethod):
 
     def fit(self, data, train_cfg=None) -> FitReport:
         """Train PEN once on the training garments of ``method.params.train`` (see ``methods/gensim/config.py``)
-        posed on random motions and body shapes, with the unsupervised losses of Eq. 9."""
+        posed on random motions and body shapes, with the unsupervised losses of Eq. 9, on ``train.threads``
+        torch threads; with ``stage`` "arap" there is nothing to train."""
         self.bind(data.body, data.material)
+        if self.p["stage"] == "arap":  # nothing to train: the ARAP stage alone
+            return FitReport(train_s=0.0, n_steps=0)
+        threads, run_threads = self.p["train"]["threads"], torch.get_num_threads()
+        if threads is not None:
+            torch.set_num_threads(int(threads))
+        try:
+            return self._fit(data, train_cfg)
+        finally:
+            torch.set_num_threads(run_threads)
+
+    def _fit(self, data, train_cfg) -> FitReport:
         run_body = self.body
         self.body = self.trained_body(run_body)
         train_cfg = dict(train_cfg or {})
@@ -252,7 +273,8 @@ class GenSim(DrapingMethod):
         ``supervised`` L2 to ``reference`` (B, V, 3) + smoothness + collision; a term of weight 0 is left out."""
         w, mat, topo = self.p["weights"], self.material, graph.topology
         make = {
-            "restrain": lambda: losses.restrain(x, topo, self.fabric["mean"], self.fabric["std"], w["restrain"]),
+            "restrain": lambda: losses.restrain(x, topo, self.fabric["mean"], self.fabric["std"], w["restrain"], self.p["restrain_reduction"],
+                                                self.p["restrain_offset"], self.p["restrain_huber"]),  # fmt: skip
             "bending": lambda: losses.bending(x, topo, mat, w["bending"], self.p["bending_rest"]),
             "pin": lambda: losses.pin(x, G, graph.pins, w["pin"]),
             "potential": lambda: losses.potential(x, topo, mat, ~graph.pin_mask, w["potential"]),
@@ -266,9 +288,10 @@ class GenSim(DrapingMethod):
     # ------------------------------------------------------------------ inference
     def drape(self, garment, seq) -> DrapeResult:
         """Each frame: ARAP on the front-aligned body, PEN (batched over frames), then the root rotation and
-        translation put back. ``extras`` holds the ARAP stage (T, V, 3) and its handle masks (T, V)."""
+        translation put back. ``extras`` holds the ARAP stage (T, V, 3) and its handle masks (T, V);
+        ``stats`` PEN's displacement: mean, p99 and max |delta| (mm) over the vertices of every frame."""
         self._require_bound()
-        if self.net is None:
+        if self.net is None and self.p["stage"] == "full":
             raise RuntimeError("gensim: not trained; call fit() or load_state_dict() first")
         t0 = time.perf_counter()
         graph = garment_graph(garment, self.body, self.material)
@@ -278,20 +301,27 @@ class GenSim(DrapingMethod):
         t1 = time.perf_counter()
         G, H, D, verts, normals, _ = self.arap_stage(graph, betas, seq.poses)
         t2 = time.perf_counter()
-        xs = []
-        with torch.inference_mode():
-            for s in range(0, seq.n_frames, PEN_CHUNK):
-                e = min(seq.n_frames, s + PEN_CHUNK)
-                xs.append(self.pen(graph, G[s:e], D[s:e], verts[s:e], normals[s:e], betas[None].expand(e - s, -1))[0])
-        x = torch.cat(xs)
+        if self.p["stage"] == "arap":
+            x = G
+        else:
+            xs = []
+            with torch.inference_mode():
+                geometry = self.encode(graph, betas[None])  # one garment and body shape for the whole drape
+                for s in range(0, seq.n_frames, PEN_CHUNK):
+                    e = min(seq.n_frames, s + PEN_CHUNK)
+                    xs.append(self.pen(graph, G[s:e], D[s:e], verts[s:e], normals[s:e], betas[None].expand(e - s, -1), geometry)[0])
+            x = torch.cat(xs)
         t3 = time.perf_counter()
+        moved = (x - G).norm(dim=-1)[seq.n_transition :].flatten().double() * 1e3
+        stats = {} if self.p["stage"] == "arap" or not len(moved) else {
+            "pen_mm": moved.mean().item(), "pen_p99_mm": moved.quantile(0.99).item(), "pen_max_mm": moved.max().item()}  # fmt: skip
         root = seq.transforms(self.body)[:, 0].to(x.dtype)  # the root's skinning transform: aligned -> world
         world = lambda y: y @ root[:, :3, :3].transpose(1, 2) + root[:, None, :3, 3]  # noqa: E731
         x, G = world(x), world(G)
         t4 = time.perf_counter()
         ms = lambda a, b: (b - a) * 1e3  # noqa: E731
-        return DrapeResult(x.clone(), {"setup": ms(t0, t1), "arap": ms(t1, t2), "pen": ms(t2, t3), "pose": ms(t3, t4)},
-                           extras={"arap": G, "handles": H})  # fmt: skip
+        extras = {"arap": G, "handles": H} if self.p["stage"] == "full" else {"handles": H}
+        return DrapeResult(x.clone(), {"setup": ms(t0, t1), "arap": ms(t1, t2), "pen": ms(t2, t3), "pose": ms(t3, t4)}, extras, stats)
 
     # ------------------------------------------------------------------ state
     def state_dict(self) -> dict:

@@ -2,8 +2,8 @@
 
 PEN encodes the ARAP-deformed garment as a graph (a node per vertex, two directed edges per mesh edge),
 runs L message-passing steps (edge update from its end nodes, node update from the mean of its incoming
-edges, residual MLPs) and decodes per vertex (b1, b2, rho, w): a unit direction in the half-space of the
-closest body normal and a non-negative magnitude. Everything is batched over frames: inputs are (B, V, .)
+edges, residual MLPs) and decodes per vertex a displacement in the half-space of the closest body normal
+(Eq. 1): a unit direction and a non-negative magnitude, or the same half-space in the local frame. Everything is batched over frames: inputs are (B, V, .)
 with one garment topology shared by the batch.
 """
 
@@ -94,33 +94,57 @@ class EdgeUpdate(nn.Module):
         return e + self.rest(self.edge_in(e) + self.sender_in(h)[:, senders] + self.receiver_in(h)[:, receivers])
 
 
+def local_frame_displacement(a: torch.Tensor, b: torch.Tensor, c: torch.Tensor, normal: torch.Tensor, scale: float, sharpness: float = 100.0) -> torch.Tensor:
+    """Displacement (..., 3) m in the local frame (n, t1, t2) of the unit body normal n (..., 3):
+    scale (m) x [softplus(a) n + b t1 + c t2], softplus of the given ``sharpness`` (a smooth max(a, 0)).
+    Its normal component is >= 0, so it spans the half-space of Eq. 1 (every direction D_hat with
+    D_hat . n >= 0, any magnitude) and is linear in b, c at zero: it can leave zero displacement."""
+    t1, t2 = tangent_basis(normal)
+    normal_part = nn.functional.softplus(a, beta=sharpness)
+    return scale * (normal_part[..., None] * normal + b[..., None] * t1 + c[..., None] * t2)
+
+
 class PEN(nn.Module):
     """Physics Enforcing Network. ``forward(node_inputs (B, V, n_node), edge_inputs (B, 2E, n_edge),
     senders (2E,), receivers (2E,), garment_points (V, 3), body_points (B or 1, Vb, 3), body_index (B, V),
-    normal (B, V, 3))`` -> displacements (B, V, 3) m and the decoded (b1, b2, rho, w)."""
+    normal (B, V, 3))`` -> displacements (B, V, 3) m and the decoded (b1, b2, rho, w).
+
+    ``decoder`` "eq1": Eq. 1's direction (``displacement_direction`` in mode ``direction``) times the magnitude
+    w = magnitude_scale x softplus(raw), the output layer scaled by 0.01 with the magnitude's bias at -4 (a
+    start at about 0.2 mm); "local": :func:`local_frame_displacement` with scale ``magnitude_scale`` and
+    PyTorch's default output layer (b1, b2 the tangent coefficients, rho the normal one, w = |delta|)."""
 
     N_NODE = 3 * 4 + 2  # u, v, d, n, pin, mass
     N_EDGE = 8  # E_ij, |E_ij|, E_ij^ARAP, |E_ij^ARAP|
 
-    def __init__(self, latent: int = 128, geometry: int = 32, steps: int = 8, direction: str = "tangent", magnitude_scale: float = 0.01):
+    def __init__(self, latent: int = 128, geometry: int = 32, steps: int = 8, direction: str = "tangent", magnitude_scale: float = 0.01,
+                 decoder: str = "local"):  # fmt: skip
         super().__init__()
-        self.direction, self.magnitude_scale = direction, magnitude_scale
+        if decoder not in ("eq1", "local"):
+            raise ValueError(f"gensim decoder must be 'eq1' or 'local', not {decoder!r}")
+        self.direction, self.magnitude_scale, self.decoder_kind = direction, magnitude_scale, decoder
         self.garment_encoder = PointNetEncoder(geometry)
         self.body_encoder = PointNetEncoder(geometry)
         self.node_encoder = mlp(2 * geometry + self.N_NODE, latent, latent)
         self.edge_encoder = mlp(self.N_EDGE, latent, latent)
         self.edge_updates = nn.ModuleList(EdgeUpdate(latent) for _ in range(steps))
         self.node_updates = nn.ModuleList(mlp(2 * latent, latent, latent) for _ in range(steps))
-        self.decoder = mlp(latent, 4, latent, norm=False)
-        with torch.no_grad():  # start near zero displacement: softplus(-4) x scale ~ 0.2 mm
-            self.decoder[-1].weight.mul_(0.01)
-            self.decoder[-1].bias.zero_()
-            self.decoder[-1].bias[3] = -4.0
+        self.decoder = mlp(latent, 4 if decoder == "eq1" else 3, latent, norm=False)
+        if decoder == "eq1":
+            with torch.no_grad():  # start near zero displacement: softplus(-4) x scale ~ 0.2 mm
+                self.decoder[-1].weight.mul_(0.01)
+                self.decoder[-1].bias.zero_()
+                self.decoder[-1].bias[3] = -4.0
 
-    def forward(self, node_inputs, edge_inputs, senders, receivers, garment_points, body_points, body_index, normal):
+    def encode_geometry(self, garment_points: torch.Tensor, body_points: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """PointNet features of the garment template (V, 3) -> (1, V, g) and of the bodies (B or 1, Vb, 3) -> (B or 1, Vb, g)."""
+        return self.garment_encoder(garment_points[None]), self.body_encoder(body_points)
+
+    def forward(self, node_inputs, edge_inputs, senders, receivers, garment_points, body_points, body_index, normal, geometry=None):
+        """See the class docstring; ``geometry``: :meth:`encode_geometry`'s output when already computed."""
         B, V, _ = node_inputs.shape
-        f_gar = self.garment_encoder(garment_points[None]).expand(B, -1, -1)
-        f_body_all = self.body_encoder(body_points).expand(B, -1, -1)
+        f_gar, f_body_all = geometry if geometry is not None else self.encode_geometry(garment_points, body_points)
+        f_gar, f_body_all = f_gar.expand(B, -1, -1), f_body_all.expand(B, -1, -1)
         f_body = torch.gather(f_body_all, 1, body_index[..., None].expand(-1, -1, f_body_all.shape[-1]))
         h = self.node_encoder(torch.cat([f_gar, f_body, node_inputs], -1))
         e = self.edge_encoder(edge_inputs)
@@ -131,6 +155,9 @@ class PEN(nn.Module):
             agg = torch.zeros_like(h).index_add_(1, receivers, e) / count
             h = h + node_mlp(torch.cat([h, agg], -1))
         out = self.decoder(h)
+        if self.decoder_kind == "local":
+            delta = local_frame_displacement(out[..., 2], out[..., 0], out[..., 1], normal, self.magnitude_scale)
+            return delta, (out[..., 0], out[..., 1], out[..., 2], delta.norm(dim=-1))
         b1, b2, rho, w = out[..., 0], out[..., 1], torch.tanh(out[..., 2]), out[..., 3]
         magnitude = self.magnitude_scale * nn.functional.softplus(w)
         direction = displacement_direction(b1, b2, rho, normal, self.direction)

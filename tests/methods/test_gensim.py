@@ -8,7 +8,7 @@ import torch
 from drapebench.geometry.ops import vertex_normals
 from drapebench.physics import Material
 from methods.gensim import losses
-from methods.gensim.arap import ArapConfig, bind, front_aligned, handle_targets, motion_aware_arap, skinned_template
+from methods.gensim.arap import ArapConfig, bind, front_aligned, handle_targets, motion_aware_arap, neighbour_mean, skinned_template
 from methods.gensim.network import PEN, displacement_direction, tangent_basis
 from drapebench.geometry.topology import get_topology
 from tests.meshes import grid_mesh
@@ -58,6 +58,14 @@ def test_pin_rule_normal_keeps_the_offset_along_the_target_normal():
     b = bind(template, canonical, pins)
     _, T, _ = handle_targets(b, template, canonical, target, normals, template, ArapConfig(pin_rule="normal"))
     assert torch.allclose(T[3], target[1] + normals[1] * 0.02, atol=1e-6)
+
+
+def test_neighbour_mean_averages_over_the_masked_neighbours_only():
+    values = torch.tensor([[0.0, 0, 0], [3.0, 0, 0], [6.0, 0, 0], [9.0, 0, 0]])
+    edges = torch.tensor([[0, 1], [1, 2], [2, 3]])
+    mask = torch.tensor([True, True, True, False])
+    out = neighbour_mean(values, edges, mask)
+    assert torch.allclose(out[:, 0], torch.tensor([1.5, 3.0, 4.5, 9.0]))  # vertex 3 is outside: kept, and not averaged in
 
 
 def test_arap_without_body_motion_returns_the_template(body_lowres):
@@ -119,27 +127,67 @@ def test_paper_direction_breaks_where_n3_is_zero():
     assert ((D[~bad] * n[~bad]).sum(-1) >= -1e-6).all()
 
 
-def test_pen_output_moves_outward_or_along_the_body():
+def _tiny_pen_inputs(decoder):
     verts, topo = _sheet(6, 0.1)
     V = len(verts)
     e = topo.edges
     senders, receivers = torch.cat([e[:, 0], e[:, 1]]), torch.cat([e[:, 1], e[:, 0]])
-    net = PEN(latent=16, geometry=8, steps=2)
+    torch.manual_seed(0)
+    net = PEN(latent=16, geometry=8, steps=2, decoder=decoder)
     normal = torch.nn.functional.normalize(torch.randn(2, V, 3), dim=-1)
-    delta, (_, _, rho, w) = net(torch.randn(2, V, PEN.N_NODE), torch.randn(2, len(senders), PEN.N_EDGE), senders, receivers,
-                                verts, torch.randn(1, 30, 3), torch.randint(0, 30, (2, V)), normal)  # fmt: skip
-    assert delta.shape == (2, V, 3) and torch.isfinite(delta).all()
-    assert ((delta * normal).sum(-1) >= -1e-7).all() and (w >= 0).all()
+    inputs = (torch.randn(2, V, PEN.N_NODE), torch.randn(2, len(senders), PEN.N_EDGE), senders, receivers, verts,
+              torch.randn(1, 30, 3), torch.randint(0, 30, (2, V)), normal)  # fmt: skip
+    return net, inputs, normal
+
+
+@pytest.mark.parametrize("decoder", ["local", "eq1"])
+def test_pen_output_moves_outward_or_along_the_body(decoder):
+    net, inputs, normal = _tiny_pen_inputs(decoder)
+    delta, (_, _, _, w) = net(*inputs)
+    assert delta.shape == normal.shape and torch.isfinite(delta).all()
+    assert ((delta * normal).sum(-1) >= -1e-7).all() and (w >= 0).all()  # Eq. 1's half-space
+
+
+def test_local_decoder_leaves_zero_and_every_direction_is_learnable():
+    net, inputs, normal = _tiny_pen_inputs("local")
+    delta, _ = net(*inputs)
+    assert delta.norm(dim=-1).mean() > 1e-4  # not stuck at zero displacement: mm at initialisation
+    tangential = delta - (delta * normal).sum(-1, keepdim=True) * normal
+    assert tangential.norm(dim=-1).mean() > 1e-4
+    target = torch.randn_like(delta)  # any direction: the output layer's gradient is not vanishing
+    ((delta - target) ** 2).sum().backward()
+    assert net.decoder[-1].weight.grad.abs().sum() > 1e-3
+    assert torch.isclose(delta, net(*inputs, geometry=net.encode_geometry(inputs[4], inputs[5]))[0]).all()  # geometry encoded once
 
 
 # ---------------------------------------------------------------------- losses against hand computations
-def test_restrain_term():
+def test_restrain_term_as_printed_and_as_configured():
     verts, topo = _sheet(2, 1.0)  # unit square, 5 edges
     x = verts.clone()
     x[1, 0] += 0.1  # vertex 1 moves out along x: the edges at it change
     phi = ((x[topo.edges[:, 0]] - x[topo.edges[:, 1]]).norm(dim=-1) - topo.rest_edge_lengths).abs()
-    expected = (((phi - 0.01) / 0.02) ** 2).sum() * 7.0
-    assert torch.allclose(losses.restrain(x[None], topo, 0.01, 0.02, 7.0), expected)
+    printed = (((phi - 0.01) / 0.02) ** 2).sum() * 7.0
+    assert torch.allclose(losses.restrain(x[None], topo, 0.01, 0.02, 7.0, "sum", "printed", None), printed)
+    z = (phi - 0.01).clamp_min(0) / 0.02
+    assert torch.allclose(losses.restrain(x[None], topo, 0.01, 0.02, 7.0, "mean", "dead_zone", None), (z**2).mean() * 7.0)
+    plain = ((phi / 0.02) ** 2).mean() * 7.0
+    assert torch.allclose(losses.restrain(x[None], topo, 0.01, 0.02, 7.0, "mean", "none", None), plain)
+    h = 2.0  # beyond h sigmas the square goes on linearly: 2 h z - h^2
+    robust = torch.where(z <= h, z**2, 2 * h * z - h * h).mean() * 7.0
+    assert torch.allclose(losses.restrain(x[None], topo, 0.01, 0.02, 7.0, "mean", "dead_zone", h), robust)
+
+
+def test_restrain_dead_zone_makes_the_rest_length_a_minimum_and_pulls_a_stretched_edge_back():
+    verts, topo = _sheet(3, 0.1)
+    at_rest = verts[None]
+    assert losses.restrain(at_rest, topo, 1e-3, 2e-3, 1.0) == 0  # printed: > 0 at rest, smallest at |dl| = mu
+    assert losses.restrain(at_rest, topo, 1e-3, 2e-3, 1.0, offset="printed") > 0
+    x = at_rest.clone()
+    x[0, -1, 0] += 0.01  # stretch the corner vertex 10 mm outward
+    x.requires_grad_(True)
+    value = losses.restrain(x, topo, 1e-3, 2e-3, 1.0)
+    value.backward()
+    assert value > 0 and x.grad[0, -1, 0] > 0  # descent moves it back
 
 
 def test_pin_term_and_its_gradient():
@@ -248,6 +296,38 @@ def test_a_fixed_training_body_makes_one_checkpoint_for_every_run_body(body_lowr
     assert body_key(fixed.trained_body(OtherBody())) == body_key(body_lowres)  # the checkpoint key's body
     run = OtherBody()
     assert methods.get("gensim")(TINY).trained_body(run) is run  # no train.body: trains on the run's body
+
+
+def test_diagnostic_term_balance_on_a_small_garment(body_lowres):
+    from methods.gensim.diagnose import PRINTED, loss_changes, term_balance, training_frames
+
+    configured = methods_get(TINY)
+    configured.bind(body_lowres, Material())
+    configured.fabric = configured._fabric()
+    graph, G, d, verts, normals = training_frames(configured, "skirt", "random", 2, 3, 0.04)
+    printed = methods_get({**TINY, **PRINTED})
+    printed.bind(body_lowres, Material())
+    printed.fabric = configured.fabric
+    rows, rows_printed = (term_balance(m, graph, G, G, verts, normals) for m in (configured, printed))
+    assert set(rows) == set(losses.UNSUPERVISED) and all(math.isfinite(v) for r in rows.values() for v in r.values())
+    assert rows["potential"]["grad_median"] > 0  # gravity pulls on every free vertex
+    # as printed, the restrain's pull on a vertex is (number of edges) times the per-edge mean's or more
+    n_edges = len(graph.topology.edges)
+    assert rows_printed["restrain"]["grad_median"] > 0.5 * n_edges * rows["restrain"]["grad_median"] > 0
+    changes = loss_changes(configured, graph, G, verts, normals)
+    assert math.isfinite(changes["noise"]) and math.isfinite(changes["drop"])
+    for name in losses.UNSUPERVISED:  # a term of weight 0 is left out of Eq. 9, the others are unchanged
+        dropped = methods_get({**TINY, "weights": {name: 0.0}})
+        dropped.bind(body_lowres, Material())
+        dropped.fabric = configured.fabric
+        left = dropped.terms(graph, G, G, verts, normals)
+        assert set(left) == set(rows) - {name} and all(torch.isclose(v, torch.tensor(rows[k]["value"])) for k, v in left.items())
+
+
+def methods_get(cfg):
+    import methods
+
+    return methods.get("gensim")(cfg)
 
 
 def test_unknown_parameters_are_named():
