@@ -16,7 +16,7 @@ import torch
 
 def term_table(terms_of: Callable[[torch.Tensor], dict[str, torch.Tensor]], x: torch.Tensor) -> pd.DataFrame:
     """One row per term of ``terms_of(x)`` (x (..., V, 3) m -> {name: scalar}) and a "total" row: the value,
-    and the norm of d term / d x per vertex over all of x's vertices (mean, p99, max; N for a term in J).
+    and the norm of d term / d x per vertex over all of x's vertices (mean, median, p99, max; N for a term in J).
     Raises ValueError naming a term that is not finite or has a non-finite gradient."""
     x = x.detach().clone().requires_grad_(True)
     terms = terms_of(x)
@@ -27,6 +27,6 @@ def term_table(terms_of: Callable[[torch.Tensor], dict[str, torch.Tensor]], x: t
         if not torch.isfinite(value) or not torch.isfinite(norm).all():
             raise ValueError(f"loss term {name!r} is not finite at this drape (value {float(value.detach()):.4g})")
         norm = norm.flatten().double()
-        rows.append({"term": name, "value": float(value.detach()), "grad_mean": float(norm.mean()),
+        rows.append({"term": name, "value": float(value.detach()), "grad_mean": float(norm.mean()), "grad_median": float(norm.median()),
                      "grad_p99": float(torch.quantile(norm, 0.99)), "grad_max": float(norm.max())})  # fmt: skip
     return pd.DataFrame(rows)

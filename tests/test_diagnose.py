@@ -15,6 +15,7 @@ def test_each_term_s_value_and_per_vertex_gradient():
     g = table.set_index("term")
     assert g.loc["gravity", "value"] == pytest.approx(5.0) and g.loc["spring", "value"] == pytest.approx(0.5)
     assert g.loc["gravity", "grad_mean"] == pytest.approx(3.0) and g.loc["gravity", "grad_max"] == pytest.approx(5.0)
+    assert g.loc["gravity", "grad_median"] == pytest.approx(3.0)
     assert g.loc["spring", "grad_max"] == pytest.approx(1.0) and g.loc["spring", "grad_mean"] == pytest.approx(0.1)
     assert g.loc["total", "value"] == pytest.approx(5.5) and g.loc["total", "grad_max"] == pytest.approx(6.0)
 

@@ -19,6 +19,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from drapebench.diagnose import term_table
+
 CONF = Path(__file__).resolve().parents[2] / "conf" / "method" / "gensim.yaml"  # its fitted mu_fabric, sigma_fabric
 PRINTED = {"restrain_reduction": "sum", "restrain_offset": "printed", "restrain_huber": None}  # Eq. 3 as printed
 
@@ -26,14 +28,11 @@ PRINTED = {"restrain_reduction": "sum", "restrain_offset": "printed", "restrain_
 def term_balance(method, graph, x: torch.Tensor, G: torch.Tensor, body_vertices, body_normals) -> dict[str, dict[str, float]]:
     """{term: {"value", "grad_median", "grad_p99"}} of ``method``'s weighted loss terms at positions x (B, V, 3) m
     for ARAP results G (B, V, 3): the value per frame and |d term / d x_i| per vertex (per m), median and p99
-    over the vertices of every frame."""
-    x = x.detach().clone().requires_grad_(True)
-    out = {}
-    for name, value in method.terms(graph, x, G, body_vertices, body_normals).items():
-        (grad,) = torch.autograd.grad(value, x)
-        g = (grad.norm(dim=-1) * len(x)).flatten().double()  # the terms are frame means: x B gives per-frame gradients
-        out[name] = {"value": value.item(), "grad_median": g.median().item(), "grad_p99": g.quantile(0.99).item()}
-    return out
+    over the vertices of every frame (:func:`drapebench.diagnose.term_table`)."""
+    table = term_table(lambda y: method.terms(graph, y, G, body_vertices, body_normals), x).set_index("term").drop("total")
+    # the terms are frame means: x B gives per-frame gradients
+    return {name: {"value": float(row.value), "grad_median": float(row.grad_median) * len(x), "grad_p99": float(row.grad_p99) * len(x)}
+            for name, row in table.iterrows()}  # fmt: skip
 
 
 def smooth_noise(topology, shape, rms: float, rounds: int = 10, seed: int = 0) -> torch.Tensor:
