@@ -25,7 +25,10 @@ VAE_DEFAULTS = dict(
     collision=1.0,  # lambda_2 (Eq. 16, mean hinge in mm over vertices)
     selfsup=True,  # the second (sampled latent) term of Eq. 16; vae_no_selfsup: False
     kl=1.0e-3,  # lambda_3 (KL per sample, summed over latent dimensions)
-    samples=8,  # z ~ N(0, I) samples per step for the self-supervised term
+    kl_warmup=0.0,  # fraction of the VAE's steps over which lambda_3 ramps linearly from 0 (0: constant)
+    logvar_init=None,  # initial bias of the log-variance head: posterior sigma starts at exp(-3) = 0.05 (None: sigma ~ 1)
+    samples=8,  # latent samples per step for the self-supervised term
+    sample_scale="prior",  # where they are drawn: prior (z ~ N(0, I), the paper) | codes (the batch codes' mean and std) | a number s (N(0, s^2 I))
     steps=None,  # training steps; None: the budget's (conf/train and schedule below)
     schedule=dict(epochs=60, batch_size=32, lr=1.0e-3, lr_after=1.0e-4, lr_switch_epoch=45, ema_decay=None,
                   lr_decay_fraction=None, grad_clip=10.0, checkpoint_every=200),  # fmt: skip
@@ -60,6 +63,11 @@ def vae_params(cfg: Mapping[str, Any] | None) -> dict:
     for section, key, allowed in (("projection", "init", ("inverse_skinning", "previous")), ("regressor", "pose", ("learned", "rotations"))):
         if p[section][key] not in allowed:
             raise ValueError(f"vae parameter {section}.{key} must be one of {', '.join(allowed)}, not {p[section][key]!r}")
+    scale = p["vae"]["sample_scale"]
+    if scale not in ("prior", "codes") and not (isinstance(scale, (int, float)) and not isinstance(scale, bool) and scale > 0):
+        raise ValueError(f"vae parameter vae.sample_scale must be prior, codes or a positive number, not {scale!r}")
+    if not 0 <= float(p["vae"]["kl_warmup"]) < 1:
+        raise ValueError(f"vae parameter vae.kl_warmup must be a fraction of the steps in [0, 1), got {p['vae']['kl_warmup']}")
     if int(p["vae"]["latent"]) < 1:
         raise ValueError(f"vae parameter vae.latent must be >= 1, got {p['vae']['latent']}")
     return p
