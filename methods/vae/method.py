@@ -17,7 +17,7 @@ from methods.base import DrapeResult, DrapingMethod, FitReport
 from methods.vae import losses
 from methods.vae.config import vae_params
 from methods.vae.descriptor import motion_descriptor, pose_rotations
-from methods.vae.garment_model import garment_model
+from methods.vae.garment_model import pose_garments
 from methods.vae.network import GarmentVAE, PoseDescriptor, Regressor
 from methods.vae.projection import Projection, project_sequences
 
@@ -273,8 +273,8 @@ class VAEModel(DrapingMethod):
             z = _timed(timings, "regressor", lambda: self.regressor(desc[None])[0][0])
             X = _timed(timings, "decoder", self.vae.decode, z)
             A = _timed(timings, "body", lambda: seq.transforms(body).to(body.dtype))
-            betas = self.body.full_betas(seq.betas)[None].expand(len(X), -1)
-            x = _timed(timings, "projection", lambda: torch.cat([garment_model(self.diffused, X[i : i + POSE_CHUNK], betas[i : i + POSE_CHUNK], A[i : i + POSE_CHUNK])
+            betas = self.body.full_betas(seq.betas)
+            x = _timed(timings, "projection", lambda: torch.cat([pose_garments(self.diffused, X[i : i + POSE_CHUNK], betas, A[i : i + POSE_CHUNK])
                                                                  for i in range(0, len(X), POSE_CHUNK)]))  # fmt: skip
         return DrapeResult(x, timings, {"canonical": X})
 

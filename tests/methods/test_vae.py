@@ -40,6 +40,9 @@ class NearestDiffused:
         dirs = self.body.shapedirs[self._nn(p)][..., : betas.shape[-1]]
         return torch.einsum("...cs,...s->...c", dirs, betas)
 
+    def weights_and_shape_offsets(self, p, betas):
+        return self.weights(p), self.shape_offsets(p, betas.expand(*p.shape[:-1], -1))
+
 
 class SphereSDF:
     """Signed distance (m) to a sphere of radius r at c."""
