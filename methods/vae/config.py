@@ -36,6 +36,8 @@ VAE_DEFAULTS = dict(
 REGRESSOR_DEFAULTS = dict(
     pose="learned",  # learned (a 10-D pose descriptor, the paper's [52]) | rotations (the joints' axis-angles)
     pose_code=10,  # size of the learned pose descriptor
+    betas=10,  # leading body-shape components in the regressor's input (the paper: beta in R^10; the public model: 4; 0: none)
+    root="world",  # root translation velocity/acceleration: world (3 components, the paper's text) | vertical (z only, the public model)
     pose_steps=1500,  # training steps of the pose descriptor's autoencoder (batch 256)
     hidden=256,
     layers=2,
@@ -60,7 +62,8 @@ def vae_params(cfg: Mapping[str, Any] | None) -> dict:
     and ``regressor`` update their own defaults). Raises ValueError naming an unknown key or a bad choice."""
     p = method_params("vae", cfg, METHOD_DEFAULTS, {"projection": PROJECTION_DEFAULTS, "vae": VAE_DEFAULTS,
                                                      "regressor": REGRESSOR_DEFAULTS})  # fmt: skip
-    for section, key, allowed in (("projection", "init", ("inverse_skinning", "previous")), ("regressor", "pose", ("learned", "rotations"))):
+    for section, key, allowed in (("projection", "init", ("inverse_skinning", "previous")), ("regressor", "pose", ("learned", "rotations")),
+                                  ("regressor", "root", ("world", "vertical"))):  # fmt: skip
         if p[section][key] not in allowed:
             raise ValueError(f"vae parameter {section}.{key} must be one of {', '.join(allowed)}, not {p[section][key]!r}")
     scale = p["vae"]["sample_scale"]
@@ -68,6 +71,8 @@ def vae_params(cfg: Mapping[str, Any] | None) -> dict:
         raise ValueError(f"vae parameter vae.sample_scale must be prior, codes or a positive number, not {scale!r}")
     if not 0 <= float(p["vae"]["kl_warmup"]) < 1:
         raise ValueError(f"vae parameter vae.kl_warmup must be a fraction of the steps in [0, 1), got {p['vae']['kl_warmup']}")
+    if int(p["regressor"]["betas"]) < 0:
+        raise ValueError(f"vae parameter regressor.betas must be >= 0 (leading shape components), got {p['regressor']['betas']}")
     if int(p["vae"]["latent"]) < 1:
         raise ValueError(f"vae parameter vae.latent must be >= 1, got {p['vae']['latent']}")
     return p

@@ -89,7 +89,9 @@ class VAEModel(DrapingMethod):
 
     def _descriptor(self, seq) -> torch.Tensor:
         with torch.no_grad():
-            return motion_descriptor(seq, self.body.full_betas(seq.betas), self._pose_code()).to(self.body.dtype)
+            r = self.p["regressor"]
+            betas = self.body.full_betas(seq.betas)[: int(r["betas"])]
+            return motion_descriptor(seq, betas, self._pose_code(), r["root"]).to(self.body.dtype)
 
     # ------------------------------------------------------------------ training
     def fit(self, data, train_cfg=None) -> FitReport:

@@ -85,6 +85,9 @@ def test_the_descriptor_holds_velocities_and_accelerations_at_the_frame_rate():
     assert torch.allclose(v_H[1:], torch.diff(seq.trans, dim=0) * 30.0, atol=1e-5)
     code = lambda R: R.flatten(-3)[..., :4]  # noqa: E731 - any pose code of 4 values
     assert motion_descriptor(seq, seq.betas, code).shape[1] == 3 * 4 + 12 + len(seq.betas)
+    vertical = motion_descriptor(seq, seq.betas[:0], code, root="vertical")  # heading-invariant, no shape
+    assert vertical.shape[1] == 3 * 4 + 2 + 6
+    torch.testing.assert_close(vertical[:, 12], motion_descriptor(seq, seq.betas, code)[:, 14])  # the vertical velocity
 
 
 def _posed_frames(body, X, seq, diffused):
@@ -339,3 +342,18 @@ def test_dropping_either_collision_term_changes_the_trained_decoder():
     full, no_selfsup, no_collision = trained({}), trained({"selfsup": False}), trained({"collision": 0.0})
     assert full[0] < no_collision[0]  # the reconstruction term pulls reconstructions out of the body
     assert full[1] < no_selfsup[1]  # the sampled term pulls decoded samples out of the body
+
+
+def test_the_vertical_root_descriptor_ignores_the_heading():
+    from dataclasses import replace
+
+    from drapebench.body.lbs import matrix_to_axis_angle
+
+    seq = make_sequence("walk", 20, fps=30.0, seed=1)
+    turn = _rot("z", 1.2)
+    poses = seq.poses.clone()
+    poses[:, 0] = matrix_to_axis_angle(turn @ axis_angle_to_matrix(seq.poses[:, 0]))
+    turned = replace(seq, poses=poses, trans=seq.trans @ turn.T)  # the same motion, walked in another direction
+    same = lambda s, root: motion_descriptor(s, s.betas, root=root)  # noqa: E731
+    torch.testing.assert_close(same(turned, "vertical"), same(seq, "vertical"), atol=2e-3, rtol=1e-3)
+    assert not torch.allclose(same(turned, "world"), same(seq, "world"), atol=1e-2)
