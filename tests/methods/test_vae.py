@@ -285,7 +285,7 @@ def _sphere_shell(r_out):
 
 def test_both_collision_terms_are_zero_outside_the_body_and_positive_inside(body):
     sdf = SphereSDF(c=(0.0, 0.0, 0.0), r=0.1)
-    p = {**vae_params(None)["vae"], "laplacian": 0.0, "kl": 0.0}
+    p = {**vae_params(None)["vae"], "laplacian": 0.0, "kl": 0.0, "sample_scale": "prior"}
     topo = None  # no Laplacian term
     for r_out, positive in ((0.15, False), (0.05, True)):
         X = _sphere_shell(r_out)
@@ -297,7 +297,7 @@ def test_both_collision_terms_are_zero_outside_the_body_and_positive_inside(body
 def test_the_sampled_term_sees_the_decoded_samples():
     sdf = SphereSDF(c=(0.0, 0.0, 0.0), r=0.1)
     X = torch.tensor([[0.11, 0.0, 0.0], [0.0, 0.13, 0.0]])  # outside the sphere and its 2 mm margin
-    p = {**vae_params(None)["vae"], "laplacian": 0.0, "kl": 0.0}
+    p = {**vae_params(None)["vae"], "laplacian": 0.0, "kl": 0.0, "sample_scale": "prior"}  # samples away from the code 0
     calm = losses.vae_terms(ShiftVAE(X, 0.0), sdf, None, X[None], p, 0.002, torch.Generator().manual_seed(0))
     colliding = losses.vae_terms(ShiftVAE(X, 0.05), sdf, None, X[None], p, 0.002, torch.Generator().manual_seed(0))
     assert calm["collision"] == 0 and colliding["collision"] == 0  # the reconstructions (z = 0) stay outside
@@ -321,7 +321,7 @@ def test_dropping_either_collision_term_changes_the_trained_decoder():
     topo = get_topology(X[0].numpy(), torch.tensor([[0, 1, 2]]).numpy())
 
     def trained(overrides):
-        p = {**vae_params(None)["vae"], **overrides}
+        p = {**vae_params(None)["vae"], "sample_scale": "prior", **overrides}
         torch.manual_seed(0)
         vae = GarmentVAE(20, 4, (32,), p["logvar_init"])
         with torch.no_grad():
