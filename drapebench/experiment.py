@@ -341,6 +341,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     for variant, drape in method.scored_variants(seq, result).items():  # the same metrics, suffixed @variant
         scored = _evaluate(cfg, garment, seq, body, drape, reference, material)[0]
         summary.update({f"{k}@{variant}": v for k, v in scored.items() if k in METRICS})
+    summary.update(method.diagnostics(garment, seq, result))  # method-specific measurements, e.g. the VAE's canonical collisions
     stages["eval_s"] = time.perf_counter() - t
     record = {
         "method": cfg.method.name, "garment": cfg.garment.kind, "motion": m.name, "body": cfg.body.name,

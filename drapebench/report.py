@@ -32,7 +32,7 @@ TABLES = {
     "gaps_table3": (["eps_e", "eps_a"], "shape"),
     "runtime": (["train_s", "ms_per_frame"], "garment"),
     "physics": (["eps_e", "eps_c", "penetration_mm", "jitter", "smoothness"], "garment"),
-    "vae_table1": (["eps_c", "vertex_error_mm", "ms_per_frame"], "shape"),
+    "vae_table1": (["eps_c", "eps_c_canonical", "sampled_prior_pct", "sampled_codes_pct", "vertex_error_mm", "ms_per_frame"], "shape"),
     "runtime_vs_error": (["ms_per_frame", "vertex_error_mm", "eps_e", "eps_a", "eps_c", "train_s"], "garment"),
     "gensim_table2": (["edge_mm", "smoothness", "eps_c", "vertex_error_mm"], "garment"),
     "gensim_ablation": (["eps_e", "edge_mm", "smoothness", "eps_c", "vertex_error_mm"], "garment"),
@@ -176,7 +176,7 @@ def table(df: pd.DataFrame, metrics: list[str], decimals: int = 3, group: str = 
     cells = {}
     for (method, garment), g in df.groupby(["method", group], sort=False):
         for m in metrics:
-            if m not in g:
+            if m not in g or g[m].isna().all():  # a metric this method does not report: the cell stays "–"
                 continue
             mean, std, n = seed_stats(g, m)
             std_col = f"{m}_std"
@@ -457,31 +457,39 @@ def loss_curve_plot(losses_csv: Path, path: Path | None = None) -> Path:
 EVALUATION_LABELS = {
     "val_colliding_pct": "validation reconstructions",
     "sampled_colliding_pct": "decoded samples z ~ N(0, I)",
+    "sampled_codes_colliding_pct": "decoded samples at the codes' spread",
 }
 
 
 def evaluation_plot(dirs, path: Path, columns=tuple(EVALUATION_LABELS), title: str = "") -> Path:
     """Per-epoch evaluations of trained runs (``evaluations.csv`` beside each run's ``metrics.json``) against
     the epoch: one colour per method, one line style per column of ``columns`` (percentages). Runs of one
-    method sharing a checkpoint draw one curve. Written to ``path`` (PNG); returns it."""
+    method sharing a training seed (a checkpoint) count once; several seeds draw their mean and a band from
+    their minimum to their maximum. Written to ``path`` (PNG); returns it."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     df = collect(dirs)
-    curves = {}
+    curves: dict[str, dict] = {}  # method -> training seed -> its evaluations
     for _, r in df.iterrows():
         csv = Path(r["run_dir"]) / "evaluations.csv"
         if csv.exists():
-            curves.setdefault(r["method"], pd.read_csv(csv))
+            curves.setdefault(r["method"], {}).setdefault(r.get("train_seed", r.get("seed")), pd.read_csv(csv))
     if not curves:
         raise FileNotFoundError(f"no evaluations.csv in the runs below {', '.join(map(str, dirs))} (only methods that evaluate per epoch write one)")
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     styles = ["-", "--", ":", "-."]
-    for i, (method, ev) in enumerate(curves.items()):
+    for i, (method, runs) in enumerate(curves.items()):
+        ev = pd.concat(list(runs.values()))
         for j, col in enumerate(c for c in columns if c in ev):
-            ax.plot(ev["epoch"] + 1, ev[col], styles[j % len(styles)], color=f"C{i}", label=f"{method}: {EVALUATION_LABELS.get(col, col)}")
+            per_epoch = ev.groupby("epoch")[col]
+            x = np.asarray(per_epoch.mean().index) + 1
+            label = f"{method}: {EVALUATION_LABELS.get(col, col)}" + (f" ({len(runs)} seeds)" if len(runs) > 1 else "")
+            ax.plot(x, per_epoch.mean(), styles[j % len(styles)], color=f"C{i}", label=label)
+            if len(runs) > 1:
+                ax.fill_between(x, per_epoch.min(), per_epoch.max(), color=f"C{i}", alpha=0.15, lw=0)
     ax.set_xlabel("training epoch", fontsize=9)
     ax.set_ylabel("garment vertices inside the canonical body (%)", fontsize=9)
     ax.set_title(title or "collisions in the canonical space per training epoch", fontsize=10)

@@ -84,6 +84,12 @@ class DrapingMethod(ABC):
         metrics (metrics.json: ``<metric>@<name>``), computed outside the drape's timing; none by default."""
         return {}
 
+    def diagnostics(self, garment, seq, result: DrapeResult) -> dict[str, float]:
+        """Method-specific measurements of a drape ``result`` of ``garment`` on ``seq`` ({name: float}, units in
+        :data:`drapebench.results.METRICS`), computed after the timed drape and written to ``metrics.json``;
+        none by default."""
+        return {}
+
     def settings_key(self) -> Any:
         """Settings a trained state depends on beyond ``cfg`` (code defaults resolved), part of the checkpoint
         key so that changing a default retrains; None (the default) when ``cfg`` says it all."""

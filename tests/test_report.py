@@ -17,6 +17,9 @@ def test_table_layout_and_cells():
     assert list(t.columns.get_level_values(0).unique()) == ["tshirt", "skirt"]
     assert t.loc["lbs", ("tshirt", "ε_e (%)")] == "4.000"
     assert t.loc["pbs", ("skirt", "ε_c (%)")] == "0.100 ± 0.020"  # mean +- std where the std exists
+    only_lbs = df.assign(eps_c_canonical=np.where(df["method"] == "lbs", 0.25, np.nan))  # a metric one method reports
+    t = table(only_lbs, ["eps_c_canonical"])
+    assert t.loc["lbs", ("tshirt", "ε_c canon. (%)")] == "0.250" and t.loc["pbs", ("tshirt", "ε_c canon. (%)")] == "–"
 
 
 def test_write_table_outputs_with_provenance(tmp_path):
@@ -174,7 +177,7 @@ def test_committed_tables_name_the_command_and_commit_that_made_them():
     assert not unlisted, f"tables not in reports/README.md: {unlisted}"
 
 
-def test_evaluation_plot_draws_the_runs_per_epoch_evaluations(tmp_path):
+def test_evaluation_plot_draws_the_runs_per_epoch_evaluations(tmp_path, monkeypatch):
     import shutil
 
     from drapebench.report import evaluation_plot, main
@@ -188,6 +191,18 @@ def test_evaluation_plot_draws_the_runs_per_epoch_evaluations(tmp_path):
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and path.stat().st_size > 5000
     main([str(tmp_path / "runs"), "--evaluations", "--out", str(tmp_path / "fig4")])
     assert (tmp_path / "fig4.png").exists()
+    import json
+
+    from drapebench import report
+
+    seeded = json.loads(runs[1].read_text())
+    seeded.update(method=json.loads(runs[0].read_text())["method"], train_seed=1)  # a second seed of the same method
+    runs[1].write_text(json.dumps(seeded))
+    (runs[1].parent / "evaluations.csv").write_text("epoch,step,val_colliding_pct,sampled_colliding_pct\n0,8,2.5,1.0\n1,16,1.5,1.0\n")
+    bands, real = [], report.save_figure
+    monkeypatch.setattr(report, "save_figure", lambda fig, p: (bands.extend(fig.axes[0].collections), real(fig, p))[1])
+    evaluation_plot([tmp_path / "runs"], tmp_path / "bands.png")
+    assert len(bands) == 2  # one min-max band per column over the two seeds
 
 
 def test_runtime_vs_error_has_a_pareto_panel_per_garment_and_the_speed_up_over_the_reference(tmp_path):

@@ -157,6 +157,23 @@ class DiffusedBody(torch.nn.Module):
             raise ValueError(f"betas has {betas.shape[-1]} components; this body has {self.n_betas}")
         return (self.shapedirs(p)[..., : betas.shape[-1]] * betas[..., None, :].to(p.dtype)).sum(-1)
 
+    def weights_and_shape_offsets(self, p: torch.Tensor, betas: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """:meth:`weights` (..., J) and :meth:`shape_offsets` (..., 3) m at points p (..., 3) m for one body
+        shape betas (S',) shared by every point, in one pass: the Fourier encoding is computed once for both
+        fields (they share centre, scale and frequencies) and betas are folded into the shape field's last
+        layer (width -> 3 instead of width -> 3 S). The same values up to float rounding."""
+        if betas.dim() != 1 or betas.shape[0] > self.n_betas:
+            raise ValueError(f"betas must be one shape (S',) with S' <= {self.n_betas}; got {tuple(betas.shape)}")
+        x = self.weight_net.encode(p)
+        weights = torch.softmax(self.weight_net.net(x), -1).to(p.dtype)
+        last = self.shape_net.net[-1]
+        n = betas.shape[0]
+        b = betas.to(last.weight.dtype) * self.shape_scale
+        W = (last.weight.reshape(3, self.n_betas, -1)[:, :n] * b[None, :, None]).sum(1)  # (3, width)
+        bias = last.bias.reshape(3, self.n_betas)[:, :n] @ b
+        offsets = torch.nn.functional.linear(self.shape_net.net[:-1](x), W, bias).to(p.dtype)
+        return weights, offsets
+
     def posedirs(self, p: torch.Tensor) -> torch.Tensor | None:
         """Pose blend shapes (..., 3, P) at points p (..., 3) m; None without pose correctives."""
         if self.pose_net is None:

@@ -51,15 +51,19 @@ class FieldMLP(torch.nn.Module):
         layers.append(torch.nn.Linear(n_in, n_out))
         self.net = torch.nn.Sequential(*layers)
 
-    def forward(self, p: torch.Tensor) -> torch.Tensor:
-        """p (..., 3) m -> (..., n_out) in the module's dtype."""
+    def encode(self, p: torch.Tensor) -> torch.Tensor:
+        """The network's input (..., 3 (1 + 2 n_frequencies)) of points p (..., 3) m: the Fourier encoding."""
         if p.shape[-1] != 3:
             raise ValueError(f"points must have shape (..., 3); got {tuple(p.shape)}")
         x = (p.to(self.center.dtype) - self.center) / self.scale
         if len(self.freqs):
             ang = (x[..., None] * self.freqs).flatten(-2)
             x = torch.cat([x, ang.sin(), ang.cos()], -1)
-        return self.net(x)
+        return x
+
+    def forward(self, p: torch.Tensor) -> torch.Tensor:
+        """p (..., 3) m -> (..., n_out) in the module's dtype."""
+        return self.net(self.encode(p))
 
 
 def body_frame(vertices: torch.Tensor) -> tuple[torch.Tensor, float]:

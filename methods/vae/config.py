@@ -25,7 +25,10 @@ VAE_DEFAULTS = dict(
     collision=1.0,  # lambda_2 (Eq. 16, mean hinge in mm over vertices)
     selfsup=True,  # the second (sampled latent) term of Eq. 16; vae_no_selfsup: False
     kl=1.0e-3,  # lambda_3 (KL per sample, summed over latent dimensions)
-    samples=8,  # z ~ N(0, I) samples per step for the self-supervised term
+    kl_warmup=0.0,  # fraction of the VAE's steps over which lambda_3 ramps linearly from 0 (0: constant)
+    logvar_init=None,  # initial bias of the log-variance head: posterior sigma starts at exp(-3) = 0.05 (None: sigma ~ 1)
+    samples=8,  # latent samples per step for the self-supervised term
+    sample_scale="codes",  # where they are drawn: codes (the batch codes' mean and std: "the same distribution as the data") | prior (z ~ N(0, I)) | a number s (N(0, s^2 I))
     steps=None,  # training steps; None: the budget's (conf/train and schedule below)
     schedule=dict(epochs=60, batch_size=32, lr=1.0e-3, lr_after=1.0e-4, lr_switch_epoch=45, ema_decay=None,
                   lr_decay_fraction=None, grad_clip=10.0, checkpoint_every=200),  # fmt: skip
@@ -33,6 +36,8 @@ VAE_DEFAULTS = dict(
 REGRESSOR_DEFAULTS = dict(
     pose="learned",  # learned (a 10-D pose descriptor, the paper's [52]) | rotations (the joints' axis-angles)
     pose_code=10,  # size of the learned pose descriptor
+    betas=10,  # leading body-shape components in the regressor's input (the paper: beta in R^10; the public model: 4; 0: none)
+    root="world",  # root translation velocity/acceleration: world (3 components, the paper's text) | vertical (z only, the public model)
     pose_steps=1500,  # training steps of the pose descriptor's autoencoder (batch 256)
     hidden=256,
     layers=2,
@@ -57,9 +62,17 @@ def vae_params(cfg: Mapping[str, Any] | None) -> dict:
     and ``regressor`` update their own defaults). Raises ValueError naming an unknown key or a bad choice."""
     p = method_params("vae", cfg, METHOD_DEFAULTS, {"projection": PROJECTION_DEFAULTS, "vae": VAE_DEFAULTS,
                                                      "regressor": REGRESSOR_DEFAULTS})  # fmt: skip
-    for section, key, allowed in (("projection", "init", ("inverse_skinning", "previous")), ("regressor", "pose", ("learned", "rotations"))):
+    for section, key, allowed in (("projection", "init", ("inverse_skinning", "previous")), ("regressor", "pose", ("learned", "rotations")),
+                                  ("regressor", "root", ("world", "vertical"))):  # fmt: skip
         if p[section][key] not in allowed:
             raise ValueError(f"vae parameter {section}.{key} must be one of {', '.join(allowed)}, not {p[section][key]!r}")
+    scale = p["vae"]["sample_scale"]
+    if scale not in ("prior", "codes") and not (isinstance(scale, (int, float)) and not isinstance(scale, bool) and scale > 0):
+        raise ValueError(f"vae parameter vae.sample_scale must be prior, codes or a positive number, not {scale!r}")
+    if not 0 <= float(p["vae"]["kl_warmup"]) < 1:
+        raise ValueError(f"vae parameter vae.kl_warmup must be a fraction of the steps in [0, 1), got {p['vae']['kl_warmup']}")
+    if int(p["regressor"]["betas"]) < 0:
+        raise ValueError(f"vae parameter regressor.betas must be >= 0 (leading shape components), got {p['regressor']['betas']}")
     if int(p["vae"]["latent"]) < 1:
         raise ValueError(f"vae parameter vae.latent must be >= 1, got {p['vae']['latent']}")
     return p

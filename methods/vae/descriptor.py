@@ -36,14 +36,21 @@ def pose_rotations(poses: torch.Tensor) -> torch.Tensor:
     return axis_angle_to_matrix(poses[:, 1:])
 
 
-def motion_descriptor(seq, betas: torch.Tensor, pose_code=None) -> torch.Tensor:
-    """Per-frame regressor input (T, 3P + 12 + S) of a body sequence: [phi, dphi, d2phi, dH, d2H, dK, d2K,
+ROOT_CHOICES = ("world", "vertical")
+
+
+def motion_descriptor(seq, betas: torch.Tensor, pose_code=None, root: str = "world") -> torch.Tensor:
+    """Per-frame regressor input (T, 3P + 2R + 6 + S) of a body sequence: [phi, dphi, d2phi, dH, d2H, dK, d2K,
     beta] with phi the pose code ``pose_code(rotations (T, J-1, 3, 3)) -> (T, P)`` (None: the non-root joints'
-    axis-angles, P = 3 (J-1)), H the root translation (m), K the root rotation's Euler angles (rad) and beta
-    the sequence's body shape ``betas`` (S,) (``BodyModel.full_betas(seq.betas)``)."""
+    axis-angles, P = 3 (J-1)), H the root translation (m; ``root`` "world": its 3 components, R = 3, the
+    paper's text; "vertical": only the vertical (z) one, R = 1, heading-invariant, the public model), K the
+    root rotation's Euler angles (rad) and beta the body shape ``betas`` (S,) (a prefix of
+    ``BodyModel.full_betas(seq.betas)``; S = 0 leaves it out)."""
+    if root not in ROOT_CHOICES:
+        raise ValueError(f"root must be one of {', '.join(ROOT_CHOICES)}, not {root!r}")
     poses = seq.poses.float()
     phi = poses[:, 1:].flatten(1) if pose_code is None else pose_code(pose_rotations(poses))
-    H = seq.trans.float()
+    H = seq.trans.float() if root == "world" else seq.trans.float()[:, 2:3]
     K = unwrap(euler_zxy(axis_angle_to_matrix(poses[:, 0])))
     fps = float(seq.fps)
     parts = [phi, derivative(phi, fps), derivative(derivative(phi, fps), fps)]

@@ -15,6 +15,14 @@ def unposed(diffused, X: torch.Tensor, betas: torch.Tensor) -> torch.Tensor:
     return X + diffused.shape_offsets(X, betas[:, None, :].expand(-1, X.shape[1], -1))
 
 
+def pose_garments(diffused, X: torch.Tensor, betas: torch.Tensor, transforms: torch.Tensor) -> torch.Tensor:
+    """:func:`garment_model` for one body shape betas (S',) shared by all B garments X (B, V, 3) m with
+    transforms (B, J, 4, 4): the diffused weights and shape offsets in one pass
+    (``diffused.weights_and_shape_offsets``) -> (B, V, 3) m; inference only."""
+    weights, offsets = diffused.weights_and_shape_offsets(X, betas)
+    return lbs(X + offsets, weights, transforms)
+
+
 def garment_model(diffused, X: torch.Tensor, betas: torch.Tensor, transforms: torch.Tensor, rest: torch.Tensor | None = None) -> torch.Tensor:
     """M_G of Eq. 7: canonical vertices X (B, V, 3) m posed by the body's skinning transforms (B, J, 4, 4)
     (translation included) for body shapes betas (B, S) -> (B, V, 3) m; ``rest`` is T_G when already

@@ -12,10 +12,31 @@ def collision(sdf, X: torch.Tensor, eps: float) -> torch.Tensor:
     return ((eps - sdf(X)).clamp_min(0) * 1e3).mean()
 
 
-def vae_terms(vae, sdf, topology, X: torch.Tensor, p: dict, eps: float, generator: torch.Generator | None = None) -> dict:
+def latent_samples(n: int, mu: torch.Tensor, scale, generator: torch.Generator | None = None) -> torch.Tensor:
+    """``n`` latent codes (n, latent) for the self-supervised term of Eq. 16: ``scale`` "prior" draws z ~ N(0, I)
+    (the paper); "codes" draws z ~ N(m, diag(s^2)) with m, s the per-dimension mean and std of the posterior
+    means mu (B, latent) of a batch (detached: where the data's codes live); a number s draws z ~ N(0, s^2 I)."""
+    noise = torch.randn((n, mu.shape[-1]), generator=generator, dtype=mu.dtype)
+    if scale == "prior":
+        return noise
+    if scale == "codes":
+        m = mu.detach()
+        return m.mean(0) + (m.std(0) if len(m) > 1 else torch.ones_like(m[0])) * noise
+    return float(scale) * noise
+
+
+def kl_divergence(mu: torch.Tensor, logvar: torch.Tensor) -> torch.Tensor:
+    """KL(N(mu, diag(exp(logvar))) || N(0, I)) in nats per code (B,), summed over latent dimensions."""
+    return -0.5 * (1 + logvar - mu.square() - logvar.exp()).sum(-1)
+
+
+def vae_terms(vae, sdf, topology, X: torch.Tensor, p: dict, eps: float, generator: torch.Generator | None = None,
+              kl_factor: float = 1.0) -> dict:  # fmt: skip
     """Eq. 13's weighted terms for a batch of canonical garments X (B, V, 3) m: reconstruction (Eq. 14, L1,
     mm), Laplacian (Eq. 15, L1 of the cotangent Laplacians, mm), collision on the reconstructions and, with
-    ``selfsup``, on decodings of z ~ N(0, I) (Eq. 16, mm), KL (nats per garment); a term of weight 0 is left out."""
+    ``selfsup``, on decodings of ``samples`` latent codes drawn per ``sample_scale`` (:func:`latent_samples`;
+    Eq. 16, mm), KL (nats per garment, weighted ``kl`` x ``kl_factor``, the annealing ramp); a term of weight 0
+    is left out."""
     mu, logvar = vae.encode(X)
     z = mu + torch.randn(mu.shape, generator=generator, dtype=mu.dtype) * torch.exp(0.5 * logvar)
     Y = vae.decode(z)
@@ -23,11 +44,11 @@ def vae_terms(vae, sdf, topology, X: torch.Tensor, p: dict, eps: float, generato
     if p["laplacian"]:
         terms["laplacian"] = p["laplacian"] * ((laplacian(Y, topology) - laplacian(X, topology)).abs() * 1e3).sum(-1).mean()
     if p["kl"]:
-        terms["kl"] = p["kl"] * (-0.5 * (1 + logvar - mu.square() - logvar.exp()).sum(-1)).mean()
+        terms["kl"] = p["kl"] * kl_factor * kl_divergence(mu, logvar).mean()
     if p["collision"]:
         terms["collision"] = p["collision"] * collision(sdf, Y, eps)
         if p["selfsup"]:
-            z_rand = torch.randn((p["samples"], vae.latent), generator=generator, dtype=mu.dtype)
+            z_rand = latent_samples(int(p["samples"]), mu, p["sample_scale"], generator)
             terms["collision_sampled"] = p["collision"] * collision(sdf, vae.decode(z_rand), eps)
     return terms
 

@@ -17,7 +17,7 @@ from methods.base import DrapeResult, DrapingMethod, FitReport
 from methods.vae import losses
 from methods.vae.config import vae_params
 from methods.vae.descriptor import motion_descriptor, pose_rotations
-from methods.vae.garment_model import garment_model
+from methods.vae.garment_model import pose_garments
 from methods.vae.network import GarmentVAE, PoseDescriptor, Regressor
 from methods.vae.projection import Projection, project_sequences
 
@@ -82,14 +82,16 @@ class VAEModel(DrapingMethod):
 
     def _new_vae(self, n_vertices: int) -> GarmentVAE:
         v = self.p["vae"]
-        return GarmentVAE(n_vertices, int(v["latent"]), v["hidden"]).to(self.body.dtype)
+        return GarmentVAE(n_vertices, int(v["latent"]), v["hidden"], v["logvar_init"]).to(self.body.dtype)
 
     def _pose_code(self):
         return None if self.pose is None else self.pose.code
 
     def _descriptor(self, seq) -> torch.Tensor:
         with torch.no_grad():
-            return motion_descriptor(seq, self.body.full_betas(seq.betas), self._pose_code()).to(self.body.dtype)
+            r = self.p["regressor"]
+            betas = self.body.full_betas(seq.betas)[: int(r["betas"])]
+            return motion_descriptor(seq, betas, self._pose_code(), r["root"]).to(self.body.dtype)
 
     # ------------------------------------------------------------------ training
     def fit(self, data, train_cfg=None) -> FitReport:
@@ -164,8 +166,9 @@ class VAEModel(DrapingMethod):
         return train_config(cfg)
 
     def _train_vae(self, X: torch.Tensor, X_val: torch.Tensor, train_cfg: dict, log_dir):
-        """Train the VAE (Eq. 13) on canonical garments X (N, V, 3); the per-epoch evaluation is Fig. 4's:
-        the % of vertices of the validation reconstructions inside the canonical body."""
+        """Train the VAE (Eq. 13) on canonical garments X (N, V, 3); the per-epoch evaluation is Fig. 4's
+        (the % of vertices of the validation reconstructions and of decoded latent samples inside the canonical
+        body, :meth:`_latent_evaluation`) with the latent statistics. Sets the VAE's ``code_mean``, ``code_std``."""
         v, eps = self.p["vae"], self.p["projection"]["eps"]
         budget = self._budget(train_cfg, v["schedule"], v["steps"])
         torch.manual_seed(budget.seed)
@@ -174,19 +177,44 @@ class VAEModel(DrapingMethod):
             self.vae.mean.copy_(X.mean(0))
             self.vae.scale.copy_((X - X.mean(0)).std().clamp_min(1e-4))
         gen = torch.Generator().manual_seed(budget.seed)
+        total = budget.steps if budget.steps is not None else -(-len(X) // budget.batch_size) * int(budget.epochs)
+        warmup = float(v["kl_warmup"]) * total
 
-        def evaluate() -> dict:
-            Y = self.vae.decode(self.vae.encode(X_val)[0])
-            z = torch.randn((256, self.vae.latent), generator=torch.Generator().manual_seed(1), dtype=X.dtype)
-            return {"val_colliding_pct": 100 * float((self.sdf(Y) < 0).to(X.dtype).mean()),
-                    "val_error_mm": 1e3 * float((Y - X_val).norm(dim=-1).mean()),
-                    "sampled_colliding_pct": 100 * float((self.sdf(self.vae.decode(z)) < 0).to(X.dtype).mean())}  # fmt: skip
+        def terms(b, at):
+            kl_factor = min(1.0, at.step / warmup) if warmup > 0 else 1.0
+            return losses.vae_terms(self.vae, self.sdf, self.topology, b, v, eps, gen, kl_factor)
 
         key = content_hash(self.p["vae"], eps, budget, X, self.template, "vae")
         objective = Objective("vae", [{"params": list(self.vae.parameters()), "lr_factor": 1.0}], len(X),
-                              lambda idx, at: X[torch.as_tensor(idx)],
-                              lambda b, at: losses.vae_terms(self.vae, self.sdf, self.topology, b, v, eps, gen), key, evaluate)  # fmt: skip
-        return train(objective, budget, log_dir=None if log_dir is None else f"{log_dir}/vae")
+                              lambda idx, at: X[torch.as_tensor(idx)], terms, key,
+                              lambda: self._latent_evaluation(X, X_val))  # fmt: skip
+        res = train(objective, budget, log_dir=None if log_dir is None else f"{log_dir}/vae")
+        with torch.no_grad():
+            mu = self.vae.encode(X)[0]
+            self.vae.code_mean.copy_(mu.mean(0))
+            self.vae.code_std.copy_(mu.std(0))
+        return res
+
+    def _latent_evaluation(self, X: torch.Tensor, X_val: torch.Tensor) -> dict:
+        """Per-epoch record of the VAE on training garments X and validation garments X_val (N, V, 3):
+        validation reconstruction error (mm) and % of its vertices inside the canonical body (learned SDF < 0);
+        the % for 256 decoded codes z ~ N(0, I) and z ~ N(m, diag(s^2)) with m, s the training codes' mean and
+        std per dimension; median posterior sigma, mean per-dimension std s and mean norm of the training codes,
+        and KL per training garment (nats)."""
+        with torch.no_grad():
+            mu, logvar = self.vae.encode(X)
+            Y = self.vae.decode(self.vae.encode(X_val)[0])
+            noise = torch.randn((256, self.vae.latent), generator=torch.Generator().manual_seed(1), dtype=X.dtype)
+            spread = mu.mean(0) + mu.std(0) * noise
+
+            def inside_pct(G):
+                return 100 * float((self.sdf(G) < 0).to(X.dtype).mean())
+
+            return {"val_colliding_pct": inside_pct(Y), "val_error_mm": 1e3 * float((Y - X_val).norm(dim=-1).mean()),
+                    "sampled_colliding_pct": inside_pct(self.vae.decode(noise)),
+                    "sampled_codes_colliding_pct": inside_pct(self.vae.decode(spread)),
+                    "posterior_sigma": float(torch.exp(0.5 * logvar).median()), "code_std": float(mu.std(0).mean()),
+                    "code_norm": float(mu.norm(dim=-1).mean()), "kl_per_sample": float(losses.kl_divergence(mu, logvar).mean())}  # fmt: skip
 
     def _train_pose(self, seqs, train_cfg: dict):
         """Train the learned pose descriptor (an autoencoder of the training poses' non-root rotations)."""
@@ -247,10 +275,33 @@ class VAEModel(DrapingMethod):
             z = _timed(timings, "regressor", lambda: self.regressor(desc[None])[0][0])
             X = _timed(timings, "decoder", self.vae.decode, z)
             A = _timed(timings, "body", lambda: seq.transforms(body).to(body.dtype))
-            betas = self.body.full_betas(seq.betas)[None].expand(len(X), -1)
-            x = _timed(timings, "projection", lambda: torch.cat([garment_model(self.diffused, X[i : i + POSE_CHUNK], betas[i : i + POSE_CHUNK], A[i : i + POSE_CHUNK])
+            betas = self.body.full_betas(seq.betas)
+            x = _timed(timings, "projection", lambda: torch.cat([pose_garments(self.diffused, X[i : i + POSE_CHUNK], betas, A[i : i + POSE_CHUNK])
                                                                  for i in range(0, len(X), POSE_CHUNK)]))  # fmt: skip
         return DrapeResult(x, timings, {"canonical": X})
+
+    def diagnostics(self, garment, seq, result: DrapeResult) -> dict:
+        """Collisions in the canonical space, apart from posing: ``eps_c_canonical`` (and ``_std`` over frames), the
+        % of the drape's decoded canonical garments' vertices inside the canonical body (the mean shape in the rest
+        pose; mesh winding number; over the frames after the transition, as eps_c); ``sampled_prior_pct``, ``sampled_prior3_pct`` and
+        ``sampled_codes_pct``, the same for 256 decoded codes z ~ N(0, I), N(0, 9 I) and N(m, diag(s^2)) (m, s the
+        training codes' mean and std per dimension), fixed draws."""
+        from drapebench.geometry.sdf import inside_body
+
+        body = self.body.shaped()[0][0][None]
+
+        def inside_pct(G: torch.Tensor) -> torch.Tensor:
+            return 100 * inside_body(G.reshape(1, -1, 3), body, self.body.faces).reshape(G.shape[:2]).to(G.dtype).mean(-1)
+
+        out = {}
+        with torch.no_grad():
+            if "canonical" in result.extras:
+                per_frame = inside_pct(result.extras["canonical"][int(seq.n_transition) :])
+                out = {"eps_c_canonical": float(per_frame.mean()), "eps_c_canonical_std": float(per_frame.std(unbiased=False))}
+            noise = torch.randn((256, self.vae.latent), generator=torch.Generator().manual_seed(1), dtype=self.body.dtype)
+            codes = {"prior": noise, "prior3": 3 * noise, "codes": self.vae.code_mean + self.vae.code_std * noise}
+            out.update({f"sampled_{k}_pct": float(inside_pct(self.vae.decode(z)).mean()) for k, z in codes.items()})
+        return out
 
     # ------------------------------------------------------------------ state
     def state_dict(self) -> dict:

@@ -17,17 +17,27 @@ def mlp(sizes: list[int], last_activation: bool = False) -> torch.nn.Sequential:
 
 class GarmentVAE(torch.nn.Module):
     """Fully connected VAE of canonical garments: X (B, V, 3) m is normalised by the training mean (V, 3)
-    and one scale (m), encoded to a Gaussian of ``latent`` dimensions and decoded back to (B, V, 3) m."""
+    and one scale (m), encoded to a Gaussian of ``latent`` dimensions and decoded back to (B, V, 3) m.
+    ``logvar_init`` (None: PyTorch's default initialisation, posterior sigma about 1 at the start) sets the
+    log-variance head's bias and scales its weights by 0.01, so training starts at sigma = exp(logvar_init / 2).
+    The buffers ``code_mean``, ``code_std`` (latent,) hold the per-dimension mean and std of the training
+    garments' posterior means (set after training; 0 and 1 before)."""
 
-    def __init__(self, n_vertices: int, latent: int = 25, hidden=(512, 256)):
+    def __init__(self, n_vertices: int, latent: int = 25, hidden=(512, 256), logvar_init: float | None = None):
         super().__init__()
         hidden = [int(h) for h in hidden]
         self.encoder = mlp([3 * n_vertices, *hidden], last_activation=True)
         self.mu = torch.nn.Linear(hidden[-1], latent)
         self.logvar = torch.nn.Linear(hidden[-1], latent)
+        if logvar_init is not None:
+            with torch.no_grad():
+                self.logvar.bias.fill_(float(logvar_init))
+                self.logvar.weight.mul_(0.01)
         self.decoder = mlp([latent, *hidden[::-1], 3 * n_vertices])
         self.register_buffer("mean", torch.zeros(n_vertices, 3))
         self.register_buffer("scale", torch.ones(()))
+        self.register_buffer("code_mean", torch.zeros(latent))
+        self.register_buffer("code_std", torch.ones(latent))
         self.latent = latent
 
     def encode(self, X: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:

@@ -102,6 +102,15 @@ def test_the_model_is_frozen_but_differentiable_in_its_points(fitted):
     assert x.grad is not None and torch.isfinite(x.grad).all() and x.grad.abs().sum() > 0
 
 
+def test_weights_and_shape_offsets_in_one_pass_equal_the_two_fields(fitted):
+    p = torch.randn(2, 50, 3, generator=torch.Generator().manual_seed(0)) * 0.3 + torch.tensor([0.0, 0.0, 1.0])
+    betas = torch.tensor([1.0, -0.5, 0.3, 2.0])
+    weights, offsets = fitted.weights_and_shape_offsets(p, betas)
+    torch.testing.assert_close(weights, fitted.weights(p), atol=1e-6, rtol=1e-5)
+    torch.testing.assert_close(offsets, fitted.shape_offsets(p, betas.expand(2, 50, -1)), atol=1e-6, rtol=1e-5)
+    assert offsets.abs().max() > 1e-4  # the shape field does move the points
+
+
 def test_a_second_fit_loads_the_cached_model(body_lowres, fitted, monkeypatch):
     monkeypatch.setattr(diffused_mod, "_fit", lambda *a: pytest.fail("refitted instead of loading the cache"))
     again = fit_diffused_body(body_lowres, TINY)

@@ -40,6 +40,9 @@ class NearestDiffused:
         dirs = self.body.shapedirs[self._nn(p)][..., : betas.shape[-1]]
         return torch.einsum("...cs,...s->...c", dirs, betas)
 
+    def weights_and_shape_offsets(self, p, betas):
+        return self.weights(p), self.shape_offsets(p, betas.expand(*p.shape[:-1], -1))
+
 
 class SphereSDF:
     """Signed distance (m) to a sphere of radius r at c."""
@@ -82,6 +85,9 @@ def test_the_descriptor_holds_velocities_and_accelerations_at_the_frame_rate():
     assert torch.allclose(v_H[1:], torch.diff(seq.trans, dim=0) * 30.0, atol=1e-5)
     code = lambda R: R.flatten(-3)[..., :4]  # noqa: E731 - any pose code of 4 values
     assert motion_descriptor(seq, seq.betas, code).shape[1] == 3 * 4 + 12 + len(seq.betas)
+    vertical = motion_descriptor(seq, seq.betas[:0], code, root="vertical")  # heading-invariant, no shape
+    assert vertical.shape[1] == 3 * 4 + 2 + 6
+    torch.testing.assert_close(vertical[:, 12], motion_descriptor(seq, seq.betas, code)[:, 14])  # the vertical velocity
 
 
 def _posed_frames(body, X, seq, diffused):
@@ -234,6 +240,7 @@ def test_a_tiny_fit_drapes_and_its_state_round_trips(body, tmp_path):
     betas = body.full_betas(test.betas)[None].expand(len(canonical), -1)
     torch.testing.assert_close(out.vertices, garment_model(diffused, canonical, betas, test.transforms(body)))
     assert report.evaluations == m.evaluations  # what the run writes to evaluations.csv
+    assert {"posterior_sigma", "code_std", "code_norm", "kl_per_sample", "sampled_codes_colliding_pct"} <= set(m.evaluations[-1])
     state = m.state_dict()
     again = _tiny_model(body, diffused, sdf)
     again.bind(body, data.material)
@@ -242,3 +249,111 @@ def test_a_tiny_fit_drapes_and_its_state_round_trips(body, tmp_path):
     rotations = _tiny_model(body, diffused, sdf, {**TINY, "regressor": {**TINY["regressor"], "pose": "rotations"}})
     rotations.fit(data, {"seed": 0})
     assert rotations.pose is None and rotations.drape(garment, test).vertices.shape == out.vertices.shape
+    clear = m.diagnostics(garment, test, out)  # the sheet and the samples stay far from the body
+    assert set(clear) == {"eps_c_canonical", "eps_c_canonical_std", "sampled_prior_pct", "sampled_prior3_pct", "sampled_codes_pct"}
+    assert all(v == 0 for v in clear.values())
+    inside = body.shaped()[0][0].mean(0) + 0.01 * torch.randn(garment.n_vertices, 3, generator=torch.Generator().manual_seed(0))
+    with torch.no_grad():  # a decoder that puts every garment inside the torso
+        m.vae.mean.copy_(inside)
+        m.vae.scale.fill_(1e-6)
+    hit = m.diagnostics(garment, test, m.drape(garment, test))
+    assert hit["eps_c_canonical"] == 100 and hit["sampled_prior_pct"] == 100 and hit["sampled_codes_pct"] == 100
+
+
+class ShiftVAE(torch.nn.Module):
+    """Stand-in VAE: every garment encodes to the code 0 (sigma ~ 0), and a code z decodes to ``X`` moved by
+    ``shift`` (m per unit |z|) along -x: reconstructions are ``X``, latent samples away from 0 move."""
+
+    def __init__(self, X, shift):
+        super().__init__()
+        self.X, self.shift, self.latent = X, shift, 3
+        self.w = torch.nn.Parameter(torch.ones(()))  # something to take a gradient of
+
+    def encode(self, X):
+        return torch.zeros(len(X), self.latent), torch.full((len(X), self.latent), -30.0)
+
+    def decode(self, z):
+        move = torch.tensor([-1.0, 0.0, 0.0]) * self.shift * z.norm(dim=-1)[:, None, None]
+        return self.w * (self.X[None] + move)
+
+
+def _sphere_shell(r_out):
+    """Points (20, 3) on the sphere of radius r_out around the origin (the SphereSDF below has radius 0.1)."""
+    d = torch.nn.functional.normalize(torch.randn(20, 3, generator=torch.Generator().manual_seed(3)), dim=-1)
+    return d * r_out
+
+
+def test_both_collision_terms_are_zero_outside_the_body_and_positive_inside(body):
+    sdf = SphereSDF(c=(0.0, 0.0, 0.0), r=0.1)
+    p = {**vae_params(None)["vae"], "laplacian": 0.0, "kl": 0.0, "sample_scale": "prior"}
+    topo = None  # no Laplacian term
+    for r_out, positive in ((0.15, False), (0.05, True)):
+        X = _sphere_shell(r_out)
+        vae = ShiftVAE(X, 0.0)  # samples decode to X too
+        terms = losses.vae_terms(vae, sdf, topo, X[None], p, 0.002, torch.Generator().manual_seed(0))
+        assert (terms["collision"] > 0) == positive and (terms["collision_sampled"] > 0) == positive
+
+
+def test_the_sampled_term_sees_the_decoded_samples():
+    sdf = SphereSDF(c=(0.0, 0.0, 0.0), r=0.1)
+    X = torch.tensor([[0.11, 0.0, 0.0], [0.0, 0.13, 0.0]])  # outside the sphere and its 2 mm margin
+    p = {**vae_params(None)["vae"], "laplacian": 0.0, "kl": 0.0, "sample_scale": "prior"}  # samples away from the code 0
+    calm = losses.vae_terms(ShiftVAE(X, 0.0), sdf, None, X[None], p, 0.002, torch.Generator().manual_seed(0))
+    colliding = losses.vae_terms(ShiftVAE(X, 0.05), sdf, None, X[None], p, 0.002, torch.Generator().manual_seed(0))
+    assert calm["collision"] == 0 and colliding["collision"] == 0  # the reconstructions (z = 0) stay outside
+    assert calm["collision_sampled"] == 0 and colliding["collision_sampled"] > 0  # samples moved into the sphere
+
+
+def test_latent_samples_are_drawn_where_the_codes_live():
+    mu = torch.tensor([[4.0, -1.0], [6.0, -1.2], [5.0, -0.8]])
+    z = losses.latent_samples(20000, mu, "codes", torch.Generator().manual_seed(0))
+    torch.testing.assert_close(z.mean(0), mu.mean(0), atol=0.03, rtol=0)
+    torch.testing.assert_close(z.std(0), mu.std(0), atol=0.03, rtol=0.02)
+    assert losses.latent_samples(20000, mu, 3.0, torch.Generator().manual_seed(0)).std(0).min() > 2.9
+    assert losses.latent_samples(20000, mu, "prior", torch.Generator().manual_seed(0)).std(0).max() < 1.05
+    with pytest.raises(ValueError, match="sample_scale"):
+        vae_params({"vae": {"sample_scale": "wide"}})
+
+
+def test_dropping_either_collision_term_changes_the_trained_decoder():
+    sdf = SphereSDF(c=(0.0, 0.0, 0.0), r=0.1)
+    X = _sphere_shell(0.105)[None] + 0.004 * torch.randn(16, 20, 3, generator=torch.Generator().manual_seed(1))
+    topo = get_topology(X[0].numpy(), torch.tensor([[0, 1, 2]]).numpy())
+
+    def trained(overrides):
+        p = {**vae_params(None)["vae"], "sample_scale": "prior", **overrides}
+        torch.manual_seed(0)
+        vae = GarmentVAE(20, 4, (32,), p["logvar_init"])
+        with torch.no_grad():
+            vae.mean.copy_(X.mean(0))
+            vae.scale.fill_(0.01)
+        opt = torch.optim.Adam(vae.parameters(), lr=3e-3)
+        gen = torch.Generator().manual_seed(0)
+        for _ in range(60):
+            loss = sum(losses.vae_terms(vae, sdf, topo, X, p, 0.002, gen).values())
+            opt.zero_grad()
+            loss.backward()
+            opt.step()
+        with torch.no_grad():
+            recon = losses.collision(sdf, vae.decode(vae.encode(X)[0]), 0.002)
+            sampled = losses.collision(sdf, vae.decode(3 * torch.randn(256, 4, generator=torch.Generator().manual_seed(5))), 0.002)
+        return float(recon), float(sampled)
+
+    full, no_selfsup, no_collision = trained({}), trained({"selfsup": False}), trained({"collision": 0.0})
+    assert full[0] < no_collision[0]  # the reconstruction term pulls reconstructions out of the body
+    assert full[1] < no_selfsup[1]  # the sampled term pulls decoded samples out of the body
+
+
+def test_the_vertical_root_descriptor_ignores_the_heading():
+    from dataclasses import replace
+
+    from drapebench.body.lbs import matrix_to_axis_angle
+
+    seq = make_sequence("walk", 20, fps=30.0, seed=1)
+    turn = _rot("z", 1.2)
+    poses = seq.poses.clone()
+    poses[:, 0] = matrix_to_axis_angle(turn @ axis_angle_to_matrix(seq.poses[:, 0]))
+    turned = replace(seq, poses=poses, trans=seq.trans @ turn.T)  # the same motion, walked in another direction
+    same = lambda s, root: motion_descriptor(s, s.betas, root=root)  # noqa: E731
+    torch.testing.assert_close(same(turned, "vertical"), same(seq, "vertical"), atol=2e-3, rtol=1e-3)
+    assert not torch.allclose(same(turned, "world"), same(seq, "world"), atol=1e-2)
