@@ -348,7 +348,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
         "shape": shape_label(seq.betas), "dtype": str(dtype).removeprefix("torch."), "reference": cfg.reference.solver or "none", "n_vertices": garment.n_vertices, "n_frames": seq.n_frames, **summary,
         "ms_per_frame": drape_ms_per_frame(result.timings_ms, drape_s, seq.n_frames), "train_s": train_s,
         "setup_s": result.timings_ms.get("setup", 0.0) / 1e3,
-        **{f"ms_{k}": v / seq.n_frames for k, v in result.timings_ms.items() if k != "setup"}, **result.stats,
+        **{f"ms_{k}": v / seq.n_frames for k, v in result.timings_ms.items() if k != "setup"},
         "seed": int(cfg.seed), "train_seed": int(cfg.train.seed), "device": str(cfg.device), "experiment": cfg.experiment_name, "checkpoint": ckpt, "commit": git_commit(),
     }  # fmt: skip
     write_prediction(out / "prediction.h5", result.vertices, garment.faces, method=cfg.method.name, garment=garment.kind,

@@ -17,13 +17,11 @@ class DrapeResult:
     timings_ms: per-stage wall time in milliseconds for the whole sequence (e.g. {"network": .., "skinning": ..}).
     extras: intermediate stages a recording shows beside the drape: (T, V, 3) positions in metres (e.g.
         GenSim's "arap") or (T, V) bool vertex masks (e.g. its "handles").
-    stats: method-specific numbers for the run's record (``metrics.json``), e.g. GenSim's "pen_mm".
     """
 
     vertices: torch.Tensor
     timings_ms: dict[str, float] = field(default_factory=dict)
     extras: dict[str, torch.Tensor] = field(default_factory=dict)
-    stats: dict[str, float] = field(default_factory=dict)
 
     @property
     def total_ms(self) -> float:

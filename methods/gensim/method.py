@@ -288,8 +288,7 @@ class GenSim(DrapingMethod):
     # ------------------------------------------------------------------ inference
     def drape(self, garment, seq) -> DrapeResult:
         """Each frame: ARAP on the front-aligned body, PEN (batched over frames), then the root rotation and
-        translation put back. ``extras`` holds the ARAP stage (T, V, 3) and its handle masks (T, V);
-        ``stats`` PEN's displacement: mean, p99 and max |delta| (mm) over the vertices of every frame."""
+        translation put back. ``extras`` holds the ARAP stage (T, V, 3) and its handle masks (T, V)."""
         self._require_bound()
         if self.net is None and self.p["stage"] == "full":
             raise RuntimeError("gensim: not trained; call fit() or load_state_dict() first")
@@ -312,16 +311,23 @@ class GenSim(DrapingMethod):
                     xs.append(self.pen(graph, G[s:e], D[s:e], verts[s:e], normals[s:e], betas[None].expand(e - s, -1), geometry)[0])
             x = torch.cat(xs)
         t3 = time.perf_counter()
-        moved = (x - G).norm(dim=-1)[seq.n_transition :].flatten().double() * 1e3
-        stats = {} if self.p["stage"] == "arap" or not len(moved) else {
-            "pen_mm": moved.mean().item(), "pen_p99_mm": moved.quantile(0.99).item(), "pen_max_mm": moved.max().item()}  # fmt: skip
         root = seq.transforms(self.body)[:, 0].to(x.dtype)  # the root's skinning transform: aligned -> world
         world = lambda y: y @ root[:, :3, :3].transpose(1, 2) + root[:, None, :3, 3]  # noqa: E731
         x, G = world(x), world(G)
         t4 = time.perf_counter()
         ms = lambda a, b: (b - a) * 1e3  # noqa: E731
         extras = {"arap": G, "handles": H} if self.p["stage"] == "full" else {"handles": H}
-        return DrapeResult(x.clone(), {"setup": ms(t0, t1), "arap": ms(t1, t2), "pen": ms(t2, t3), "pose": ms(t3, t4)}, extras, stats)
+        return DrapeResult(x.clone(), {"setup": ms(t0, t1), "arap": ms(t1, t2), "pen": ms(t2, t3), "pose": ms(t3, t4)}, extras)
+
+    def diagnostics(self, garment, seq, result: DrapeResult) -> dict:
+        """PEN's displacement from the ARAP stage, mean, p99 and max |delta| (mm) over the vertices of every
+        frame after the transition ("pen_mm", "pen_p99_mm", "pen_max_mm"); none for the ARAP stage alone."""
+        if "arap" not in result.extras:
+            return {}
+        moved = (result.vertices - result.extras["arap"]).norm(dim=-1)[seq.n_transition :].flatten().double() * 1e3
+        if not len(moved):
+            return {}
+        return {"pen_mm": moved.mean().item(), "pen_p99_mm": moved.quantile(0.99).item(), "pen_max_mm": moved.max().item()}
 
     # ------------------------------------------------------------------ state
     def state_dict(self) -> dict:

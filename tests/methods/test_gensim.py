@@ -5,6 +5,7 @@ import math
 import pytest
 import torch
 
+import methods
 from drapebench.geometry.ops import vertex_normals
 from drapebench.physics import Material
 from methods.gensim import losses
@@ -337,3 +338,17 @@ def test_unknown_parameters_are_named():
         methods.get("gensim")({"latnet": 3})
     with pytest.raises(ValueError, match="direction must be one of"):
         methods.get("gensim")({"direction": "sideways"})
+
+
+def test_pen_displacement_is_measured_after_the_transition_and_not_for_the_arap_stage_alone():
+    from drapebench.body import make_sequence
+    from methods.base import DrapeResult
+
+    seq = make_sequence("walk", 6, seed=0, transition=2)
+    arap = torch.zeros(6, 4, 3)
+    x = arap.clone()
+    x[:2, :, 0] = 1.0  # the transition frames are not counted
+    x[2:, 0, 2] = 0.003  # one vertex of four PEN moved 3 mm
+    stats = methods.get("gensim")().diagnostics(None, seq, DrapeResult(x, extras={"arap": arap}))
+    assert stats["pen_mm"] == pytest.approx(0.75) and stats["pen_max_mm"] == pytest.approx(3.0)
+    assert methods.get("gensim")().diagnostics(None, seq, DrapeResult(x, extras={})) == {}
