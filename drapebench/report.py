@@ -336,7 +336,7 @@ def runtime_plot(df: pd.DataFrame, path: Path, title: str = "") -> Path:
     from matplotlib.lines import Line2D
 
     error = runtime_error(df)
-    fig, ax = plt.subplots(figsize=(6.4, 4.4))
+    fig, ax = plt.subplots(figsize=(8.0, 4.4))
     varying = [c for c in ("garment", "shape", "motion", "body") if c in df and df[c].nunique() > 1]
     scene = df[varying].astype(str).agg(", ".join, axis=1) if varying else pd.Series("", index=df.index)
     shapes = {k: "os^DvPX*<>"[i % 10] for i, k in enumerate(dict.fromkeys(scene))}
@@ -344,11 +344,13 @@ def runtime_plot(df: pd.DataFrame, path: Path, title: str = "") -> Path:
     for (method, key), g in df.groupby([df["method"], scene], sort=False):
         ax.scatter(g["ms_per_frame"], g[error], color=colour[method], marker=shapes[key], s=36)
     methods = [Line2D([], [], color=c, marker="o", ls="", label=m) for m, c in colour.items()]
-    ax.add_artist(ax.legend(handles=methods, fontsize=7, title="method", title_fontsize=7, loc="upper right"))
+    # both legends right of the axes: inside they can hide points
+    ax.add_artist(ax.legend(handles=methods, fontsize=7, title="method", title_fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0)))
     if varying:
         scenes = [Line2D([], [], color="grey", marker=m, ls="", label=k) for k, m in shapes.items()]
         names = {"shape": "body shape"}
-        ax.legend(handles=scenes, fontsize=7, title=", ".join(names.get(c, c) for c in varying), title_fontsize=7, loc="upper center")
+        ax.legend(handles=scenes, fontsize=7, title=", ".join(names.get(c, c) for c in varying), title_fontsize=7, loc="lower left",
+                  bbox_to_anchor=(1.01, 0.0))  # fmt: skip
     ax.set_xscale("log")
     plain = matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}")  # 2, not 2 x 10^0
     ax.xaxis.set_major_formatter(plain)
@@ -417,10 +419,12 @@ def speedups(df: pd.DataFrame, reference: str = REFERENCE_METHOD) -> str:
 def save_figure(fig, path: Path) -> Path:
     """Lay out ``fig``, write it to ``path`` as a PNG atomically and close it; returns ``path``."""
     import matplotlib.pyplot as plt
+    from matplotlib.legend import Legend
 
     fig.tight_layout()
+    legends = [a for ax in fig.axes for a in ax.get_children() if isinstance(a, Legend)]  # those outside the axes too
     with atomic_write(path, mode=None) as tmp:
-        fig.savefig(tmp, dpi=130, format="png")
+        fig.savefig(tmp, dpi=130, format="png", bbox_inches="tight", bbox_extra_artists=legends)
     plt.close(fig)
     return path
 
