@@ -2,7 +2,7 @@
 size of its gradient on every vertex, so a term that dominates the others by orders of magnitude shows.
 
 A term's gradient with respect to a vertex position is a force in N when the term is an energy in J and the
-positions are in m; :func:`term_table` reports its per-vertex norm (mean, 99th percentile, max) next to the
+positions are in m; :func:`term_table` reports its per-vertex norm (mean, median, 99th percentile, max) next to the
 value, one row per term and one for their sum.
 """
 

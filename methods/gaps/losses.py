@@ -24,26 +24,26 @@ from drapebench.physics import (
 )
 
 
-def strain(x: torch.Tensor, topo, material, batch_size: int) -> torch.Tensor:
-    """StVK membrane energy (J) summed over x's frames, divided by ``batch_size``."""
-    return stvk_energy(x, topo, material).sum() / batch_size
+def strain(x: torch.Tensor, topo, material, n: int) -> torch.Tensor:
+    """StVK membrane energy (J) summed over x's frames, divided by ``n``."""
+    return stvk_energy(x, topo, material).sum() / n
 
 
-def bending(x: torch.Tensor, topo, material, batch_size: int, mode: str = "blend", blend: torch.Tensor | None = None) -> torch.Tensor:
-    """Bending energy (J) summed over x's frames, divided by ``batch_size``, against flat (``mode`` "flat"), template ("template") or, for "blend",
+def bending(x: torch.Tensor, topo, material, n: int, mode: str = "blend", blend: torch.Tensor | None = None) -> torch.Tensor:
+    """Bending energy (J) summed over x's frames, divided by ``n``, against flat (``mode`` "flat"), template ("template") or, for "blend",
     rest angles blended per hinge edge by ``blend`` (E,) in [0, 1] (GAPS Eq. 12)."""
     rest_angle = "template" if mode == "template" else "flat"
-    return bending_energy(x, topo, material, rest_angle=rest_angle, blend=blend if mode == "blend" else None).sum() / batch_size
+    return bending_energy(x, topo, material, rest_angle=rest_angle, blend=blend if mode == "blend" else None).sum() / n
 
 
-def gravity(x: torch.Tensor, topo, material, batch_size: int) -> torch.Tensor:
-    """Gravitational potential energy (J) summed over x's frames, divided by ``batch_size``."""
-    return gravity_energy(x, topo, material).sum() / batch_size
+def gravity(x: torch.Tensor, topo, material, n: int) -> torch.Tensor:
+    """Gravitational potential energy (J) summed over x's frames, divided by ``n``."""
+    return gravity_energy(x, topo, material).sum() / n
 
 
-def collision(x: torch.Tensor, nn, batch_size: int, weight: float, eps: float) -> torch.Tensor:
+def collision(x: torch.Tensor, nn, n: int, weight: float, eps: float) -> torch.Tensor:
     """weight x cubic collision penalty (m^3) per window against the body point ``nn.point`` along ``nn.normal``, margin ``eps`` m."""
-    return weight * collision_energy(x, nn.point, nn.normal, eps).sum() / batch_size
+    return weight * collision_energy(x, nn.point, nn.normal, eps).sum() / n
 
 
 def inertia(xw: torch.Tensor, topo, material) -> torch.Tensor:
@@ -66,10 +66,10 @@ def extension_factor(distance: torch.Tensor, epoch: int, mode: str, eps: float, 
     return torch.ones(1, dtype=distance.dtype, device=distance.device)
 
 
-def inextensibility(x: torch.Tensor, topo, k_ext: torch.Tensor, batch_size: int, weight: float) -> torch.Tensor:
-    """weight x collision-aware inextensibility energy (m^6) summed over x's frames, divided by ``batch_size``,
+def inextensibility(x: torch.Tensor, topo, k_ext: torch.Tensor, n: int, weight: float) -> torch.Tensor:
+    """weight x collision-aware inextensibility energy (m^6) summed over x's frames, divided by ``n``,
     with extension factor ``k_ext``."""
-    return weight * inextensibility_energy(x, topo, k_ext).sum() / batch_size
+    return weight * inextensibility_energy(x, topo, k_ext).sum() / n
 
 
 def loss_terms(x: torch.Tensor, window: int, nn, topo, material, p: dict, epoch: int, blend: torch.Tensor) -> tuple[dict, torch.Tensor | None]:
