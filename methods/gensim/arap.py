@@ -129,8 +129,9 @@ def motion_aware_arap(template, faces, handles, targets, target_body, target_nor
     solver = arap_solver(template, faces, idx, cfg.arap_iterations)
     start, goal = template[idx].double(), targets[idx].double()
     free = ~handles
-    f = torch.as_tensor(faces).long()
-    edges = torch.unique(torch.cat([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]).sort(dim=1).values, dim=0)
+    if cfg.push_smoothing:
+        f = torch.as_tensor(faces).long()
+        edges = torch.unique(torch.cat([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]).sort(dim=1).values, dim=0)
     body, body_normals = target_body[None].double(), target_normals[None].double()
     tree = body_vertex_tree(body[0], candidates)  # one search structure for the frame's 10 steps
     G = template.double().numpy()

@@ -25,7 +25,7 @@ from methods.gensim.config import gensim_params
 from methods.gensim.network import PEN
 
 log = logging.getLogger("drapebench")
-PEN_CHUNK = 2  # frames per PEN pass at inference (larger chunks are memory-bound on the CPU)
+PEN_CHUNK = 1  # frames per PEN pass at inference (larger batches are memory-bound on the CPU: measured slower per frame)
 FRAMES = Cache("gensim", 4)  # the ARAP stage of the training frames
 
 

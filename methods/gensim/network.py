@@ -79,9 +79,9 @@ def displacement_direction(b1: torch.Tensor, b2: torch.Tensor, rho: torch.Tensor
 
 
 class EdgeUpdate(nn.Module):
-    """Residual edge update e + MLP([e, h_senders, h_receivers]) (B, 2E, n), with the first layer applied to
-    the nodes before the gather (W [e; h_s; h_r] = W_e e + (W_s h)[s] + (W_r h)[r]): the same function,
-    a third of the work on the (many more) edges."""
+    """Residual edge update e + MLP([e, h_senders, h_receivers]) on node-major features, edges e (2E, B, n) and
+    nodes h (V, B, n), with the first layer applied to the nodes before the gather (W [e; h_s; h_r] + b =
+    W_e e + (W_s h + b)[s] + (W_r h)[r]): the same function, a third of the work on the (many more) edges."""
 
     def __init__(self, latent: int):
         super().__init__()
@@ -91,7 +91,10 @@ class EdgeUpdate(nn.Module):
         self.rest = nn.Sequential(nn.ReLU(), nn.Linear(latent, latent), nn.LayerNorm(latent))
 
     def forward(self, e, h, senders, receivers):
-        return e + self.rest(self.edge_in(e) + self.sender_in(h)[:, senders] + self.receiver_in(h)[:, receivers])
+        nodes = nn.functional.linear(h, self.sender_in.weight, self.edge_in.bias).index_select(0, senders)
+        nodes = nodes + self.receiver_in(h).index_select(0, receivers)
+        first = torch.addmm(nodes.flatten(0, 1), e.flatten(0, 1), self.edge_in.weight.t()).view_as(e)
+        return e + self.rest(first)
 
 
 def local_frame_displacement(a: torch.Tensor, b: torch.Tensor, c: torch.Tensor, normal: torch.Tensor, scale: float, sharpness: float = 100.0) -> torch.Tensor:
@@ -146,14 +149,16 @@ class PEN(nn.Module):
         f_gar, f_body_all = geometry if geometry is not None else self.encode_geometry(garment_points, body_points)
         f_gar, f_body_all = f_gar.expand(B, -1, -1), f_body_all.expand(B, -1, -1)
         f_body = torch.gather(f_body_all, 1, body_index[..., None].expand(-1, -1, f_body_all.shape[-1]))
-        h = self.node_encoder(torch.cat([f_gar, f_body, node_inputs], -1))
-        e = self.edge_encoder(edge_inputs)
+        # node-major (V, B, .) and edge-major (2E, B, .) features: gathers and scatters move whole rows
+        h = self.node_encoder(torch.cat([f_gar, f_body, node_inputs], -1).transpose(0, 1).contiguous())
+        e = self.edge_encoder(edge_inputs.transpose(0, 1).contiguous())
         count = torch.zeros(V, dtype=h.dtype, device=h.device).index_add_(0, receivers, torch.ones_like(receivers, dtype=h.dtype))
-        count = count.clamp_min(1.0)[None, :, None]
+        inverse_count = (1.0 / count.clamp_min(1.0))[:, None, None]
         for edge_mlp, node_mlp in zip(self.edge_updates, self.node_updates):
             e = edge_mlp(e, h, senders, receivers)
-            agg = torch.zeros_like(h).index_add_(1, receivers, e) / count
+            agg = torch.zeros_like(h).index_add_(0, receivers, e) * inverse_count
             h = h + node_mlp(torch.cat([h, agg], -1))
+        h = h.transpose(0, 1)
         out = self.decoder(h)
         if self.decoder_kind == "local":
             delta = local_frame_displacement(out[..., 2], out[..., 0], out[..., 1], normal, self.magnitude_scale)
