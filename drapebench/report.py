@@ -38,9 +38,12 @@ TABLES = {
     "gensim_ablation": (["eps_e", "edge_mm", "smoothness", "eps_c", "vertex_error_mm"], "garment"),
     "gensim_table1": (["eps_c", "vertex_error_mm"], "experiment"),
     "gensim_pen": (["energy_j", "eps_c", "eps_e", "pen_mm", "pen_p99_mm"], "garment"),  # Fig. 2 / 11: gensim against gensim_arap
+    "gensim_fig10": (["hem_drop_mm", "eps_e", "eps_c", "pen_mm"], "garment"),  # Fig. 10: V1 falls, V2 elongates, V3 holds
     "gaps_generalisation": (["eps_e", "eps_a", "eps_c", "vertex_error_mm", "energy_j"], "scene"),
     "stability": (["max_strain", "max_penetration_mm", "eps_c", "drift_mm"], None),  # one row per run
 }
+# tables that also draw their metrics as bars, one panel per metric (<out>_bars.png)
+BAR_FIGURES = {"gensim_fig10": ["hem_drop_mm", "eps_e"]}
 CASE_COLUMNS = ["method", "garment", "motion", "shape", "dtype", "n_frames"]  # a row of a per-run table
 ENERGY_PARTS = ("energy_stvk", "energy_bending", "energy_gravity")  # summed into energy_j (J per frame)
 # what a table's empty cells mean, printed under it
@@ -416,15 +419,51 @@ def speedups(df: pd.DataFrame, reference: str = REFERENCE_METHOD) -> str:
     return f"Speed-up over `{reference}` (its ms/frame over the method's):\n" + "\n".join(lines) if lines else ""
 
 
+def metric_bars_plot(df: pd.DataFrame, metrics: list[str], path: Path, title: str = "") -> Path:
+    """One panel per metric of ``metrics``: a bar per method (its seeds' mean, as the tables average them) with
+    the seeds' sample std as the error bar and each seed as a dot; garments side by side where there are
+    several. Written to ``path`` (PNG); returns it."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    methods = list(dict.fromkeys(df["method"]))
+    garments = list(dict.fromkeys(df["garment"]))
+    fig, axes = plt.subplots(1, len(metrics), figsize=(3.4 * len(metrics) + 0.6, 3.6), squeeze=False)
+    width = 0.8 / len(garments)
+    for ax, m in zip(axes[0], metrics):
+        for j, garment in enumerate(garments):
+            for i, method in enumerate(methods):
+                g = df[(df["method"] == method) & (df["garment"] == garment)]
+                if m not in g or g[m].isna().all():
+                    continue
+                mean, std, _ = seed_stats(g, m)
+                x = i + (j - (len(garments) - 1) / 2) * width
+                ax.bar(x, mean, width * 0.9, yerr=None if np.isnan(std) else std, color=f"C{j}", capsize=3,
+                       label=garment if i == 0 else None)  # fmt: skip
+                ax.plot([x] * len(g), g.groupby(seed_ids(g))[m].mean(), "k.", ms=3)
+        info = METRICS[m]
+        ax.set_xticks(range(len(methods)), methods, rotation=30, ha="right", fontsize=8)
+        ax.set_ylabel(f"{info.label}", fontsize=9)
+        ax.set_title(info.meaning, fontsize=8)
+        ax.axhline(0, color="grey", lw=0.6)
+        ax.grid(alpha=0.3, axis="y")
+    if len(garments) > 1:
+        axes[0][-1].legend(fontsize=7, title="garment", title_fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    fig.suptitle(f"{title + ': ' if title else ''}mean over seeds, error bar the seeds' std, dots the seeds", fontsize=10)
+    return save_figure(fig, path)
+
+
 def save_figure(fig, path: Path) -> Path:
     """Lay out ``fig``, write it to ``path`` as a PNG atomically and close it; returns ``path``."""
     import matplotlib.pyplot as plt
     from matplotlib.legend import Legend
 
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0, 1, 0.93) if fig.get_suptitle() else None)  # room for a figure title
     legends = [a for ax in fig.axes for a in ax.get_children() if isinstance(a, Legend)]  # those outside the axes too
     with atomic_write(path, mode=None) as tmp:
-        fig.savefig(tmp, dpi=130, format="png", bbox_inches="tight", bbox_extra_artists=legends)
+        fig.savefig(tmp, dpi=130, format="png", bbox_inches="tight", bbox_extra_artists=fig.get_default_bbox_extra_artists() + legends)
     plt.close(fig)
     return path
 
@@ -516,7 +555,7 @@ def only_methods(df: pd.DataFrame, methods: list[str] | None) -> pd.DataFrame:
 
 def write_table(dirs, name: str, out: Path, command: str | None = None, methods: list[str] | None = None) -> list[Path]:
     """Write ``out``.md/.tex/.csv and ``out``_runtime.png for table ``name`` (rows: ``methods`` in that order,
-    or every method of the runs); returns the paths."""
+    or every method of the runs), and ``out``_bars.png for a table of ``BAR_FIGURES``; returns the paths."""
     if name not in TABLES:
         raise KeyError(f"unknown table {name!r}; tables: {', '.join(TABLES)}")
     metrics, group = TABLES[name]
@@ -551,6 +590,8 @@ def write_table(dirs, name: str, out: Path, command: str | None = None, methods:
         f.write(comment.format(c="#"))
         t.to_csv(f)
     (pareto_plot if name == "runtime_vs_error" else runtime_plot)(df, paths[3], title=name)
+    if name in BAR_FIGURES:
+        paths.append(metric_bars_plot(df, BAR_FIGURES[name], out.parent / f"{out.name}_bars.png", title=name))
     return paths
 
 

@@ -420,3 +420,19 @@ def test_runs_on_a_gpu_write_a_gpu_table_beside_the_cpu_one(tmp_path):
     f.write_text(json.dumps({**json.loads(f.read_text()), "device": "cpu"}))
     with pytest.raises(ValueError, match="mix devices"):
         write_table([tmp_path], "baseline", tmp_path / "out" / "t", command="pytest")
+
+
+def test_fig10_table_draws_its_metrics_as_bars_over_seeds(tmp_path, monkeypatch):
+    from drapebench import report
+
+    df = collect([FIXTURES])
+    df = df.assign(hem_drop_mm=[5.0, 7.0, 1.0, 2.0], seed=[0, 1, 0, 1])
+    drawn = {}
+    monkeypatch.setattr(report, "collect", lambda dirs: df)
+    real = report.metric_bars_plot
+    monkeypatch.setattr(report, "metric_bars_plot", lambda d, metrics, path, title="": drawn.setdefault("m", metrics) and real(d, metrics, path, title))
+    paths = write_table([FIXTURES], "gensim_fig10", tmp_path / "fig10", command="pytest")
+    bars = paths[-1]
+    assert bars.name == "fig10_bars.png" and bars.read_bytes()[:4] == b"\x89PNG" and bars.stat().st_size > 5000
+    assert drawn["m"] == ["hem_drop_mm", "eps_e"]
+    assert report.seed_stats(df[df["method"] == df["method"].iloc[0]], "hem_drop_mm")[2] == 2

@@ -15,6 +15,7 @@ import torch
 from drapebench.cache import Cache, body_key, content_hash
 from drapebench.garments.pins import garment_pins
 from drapebench.geometry.ops import vertex_normals
+from drapebench.geometry.topology import boundary_loops
 from drapebench.geometry.proximity import nearest_body_vertex
 from drapebench.progress import progress
 from drapebench.train import Objective, train, train_config
@@ -58,6 +59,15 @@ def garment_graph(garment, body, material) -> GarmentGraph:
     b = bind(template, canonical, pins)
     return GarmentGraph(template, garment.topology, pins, b.pin, senders, receivers, template[receivers] - template[senders],
                         garment.topology.vertex_masses(material).to(body.dtype) * 1e3, b, garment.betas.to(body.dtype))  # fmt: skip
+
+
+def hem_vertices(garment) -> torch.Tensor:
+    """(H,) long: the vertices of the garment's lowest boundary loop (mean height of its rest vertices; z up)."""
+    loops = boundary_loops(garment.faces.cpu().numpy())
+    if not loops:
+        raise ValueError(f"gensim: garment {garment.name!r} has no boundary loop, so no hem to measure")
+    z = garment.vertices[:, 2]
+    return torch.as_tensor(min(loops, key=lambda loop: z[torch.as_tensor(loop)].mean().item())).long()
 
 
 class GenSim(DrapingMethod):
@@ -320,14 +330,20 @@ class GenSim(DrapingMethod):
         return DrapeResult(x.clone(), {"setup": ms(t0, t1), "arap": ms(t1, t2), "pen": ms(t2, t3), "pose": ms(t3, t4)}, extras)
 
     def diagnostics(self, garment, seq, result: DrapeResult) -> dict:
-        """PEN's displacement from the ARAP stage, mean, p99 and max |delta| (mm) over the vertices of every
-        frame after the transition ("pen_mm", "pen_p99_mm", "pen_max_mm"); none for the ARAP stage alone."""
+        """PEN's displacement from the ARAP stage over the vertices of every frame after the transition: mean,
+        p99 and max |delta| (mm; "pen_mm", "pen_p99_mm", "pen_max_mm"), and "hem_drop_mm", how far PEN lowers
+        the hem (the garment's lowest boundary loop; positive: down) on average (Fig. 10); none for the ARAP
+        stage alone."""
         if "arap" not in result.extras:
             return {}
-        moved = (result.vertices - result.extras["arap"]).norm(dim=-1)[seq.n_transition :].flatten().double() * 1e3
-        if not len(moved):
+        delta = (result.vertices - result.extras["arap"])[seq.n_transition :].double() * 1e3
+        if not len(delta):
             return {}
-        return {"pen_mm": moved.mean().item(), "pen_p99_mm": moved.quantile(0.99).item(), "pen_max_mm": moved.max().item()}
+        moved = delta.norm(dim=-1).flatten()
+        stats = {"pen_mm": moved.mean().item(), "pen_p99_mm": moved.quantile(0.99).item(), "pen_max_mm": moved.max().item()}
+        if garment is not None:
+            stats["hem_drop_mm"] = -delta[:, hem_vertices(garment), 2].mean().item()
+        return stats
 
     # ------------------------------------------------------------------ state
     def state_dict(self) -> dict:

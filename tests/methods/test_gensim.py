@@ -352,3 +352,21 @@ def test_pen_displacement_is_measured_after_the_transition_and_not_for_the_arap_
     stats = methods.get("gensim")().diagnostics(None, seq, DrapeResult(x, extras={"arap": arap}))
     assert stats["pen_mm"] == pytest.approx(0.75) and stats["pen_max_mm"] == pytest.approx(3.0)
     assert methods.get("gensim")().diagnostics(None, seq, DrapeResult(x, extras={})) == {}
+
+
+def test_hem_drop_is_the_mean_lowering_of_the_lowest_boundary_loop(body_lowres):
+    from drapebench.body import make_sequence
+    from drapebench.garments import make_garment
+    from methods.base import DrapeResult
+    from methods.gensim.method import hem_vertices
+
+    g = make_garment("skirt", body_lowres, resolution=0.03)
+    hem = hem_vertices(g)
+    assert g.vertices[hem, 2].mean() < g.vertices[:, 2].mean()  # the lower of the skirt's two loops
+    seq = make_sequence("walk", 4, seed=0, transition=1)
+    arap = g.vertices[None].expand(4, -1, -1).clone()
+    x = arap.clone()
+    x[:, hem, 2] -= 0.01  # PEN lowers the hem by 10 mm and moves nothing else down
+    x[:, :, 0] += 0.002
+    stats = methods.get("gensim")().diagnostics(g, seq, DrapeResult(x, extras={"arap": arap}))
+    assert stats["hem_drop_mm"] == pytest.approx(10.0, abs=1e-4)
