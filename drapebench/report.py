@@ -121,6 +121,19 @@ def collect_failures(dirs) -> pd.DataFrame:
     return with_scene(pd.DataFrame(rows))
 
 
+def failure_notes(failed: pd.DataFrame, where) -> str:
+    """One line per distinct failure message (the runs it stopped, "method on <where(row)>", named once each, with
+    a count where runs repeat), in the order the failures were found; "" when none failed."""
+    if failed.empty:
+        return ""
+    lines = []
+    for message, rows in failed.groupby("message", sort=False):
+        runs = pd.Series([f"{r.method} on {where(r)}" for _, r in rows.iterrows()]).value_counts(sort=False)
+        names = ", ".join(f"{name}{f' (x{n})' if n > 1 else ''}" for name, n in runs.items())
+        lines.append(f"\n- {names} failed: {message}")
+    return "".join(lines)
+
+
 def mark_failures(t: pd.DataFrame, failed: pd.DataFrame, group: str = "garment") -> pd.DataFrame:
     """``t`` (from :func:`table`) with every cell of a failed (method, group value) set to "failed"
     (rows and column groups added where no run of them finished)."""
@@ -568,7 +581,7 @@ def write_table(dirs, name: str, out: Path, command: str | None = None, methods:
     prov = provenance(pd.concat([df, failed]), command)
     about = f"{scene(pd.concat([df, failed]))}\n\n{legend(metrics)}"
     where = (lambda r: " ".join(str(r.get(c, "")) for c in CASE_COLUMNS[1:5])) if group is None else (lambda r: r[group])  # noqa: E731
-    notes = "".join(f"\n- {r.method} on {where(r)} failed: {r.message}" for _, r in failed.iterrows()) if len(failed) else ""
+    notes = failure_notes(failed, where)
     if name in TABLE_NOTES:
         notes += "\n" + TABLE_NOTES[name]
     if "vertex_error_mm" in metrics and reference_floor(df, group):

@@ -84,6 +84,12 @@ def test_failed_runs_show_as_failed_cells_in_tables_and_summaries(tmp_path):
     write_summary(tmp_path / "sweep")
     rows = pd.read_csv(tmp_path / "sweep" / "summary.csv")
     assert len(rows) == 5 and list(rows["status"]).count("failed") == 1
+    for k, method in ((5, "pbs"), (6, "lbs")):  # the same cause in more runs: one line naming them all
+        (tmp_path / "sweep" / f"{k}_{method}_gown").mkdir()
+        (tmp_path / "sweep" / f"{k}_{method}_gown" / "failed.json").write_text(
+            (tmp_path / "sweep" / "4_pbs_gown" / "failed.json").read_text().replace('"pbs"', f'"{method}"'))
+    grouped = write_table([tmp_path / "sweep"], "baseline", tmp_path / "g", command="pytest")[0].read_text()
+    assert grouped.count("diverged at frame 12 of 105") == 1 and "- pbs on gown (x2), lbs on gown failed:" in grouped
 
 
 def test_jobs_are_collected_in_job_order(tmp_path):
