@@ -85,8 +85,8 @@ def headline(record: dict, names=("eps_e", "eps_a", "eps_c", "vertex_error_mm", 
     return ", ".join(f"{n} {record[n]:.3g} {METRICS[n].unit}" for n in names if n in record)
 
 
-def git_commit() -> str:
-    """HEAD commit of the project (with ``-dirty`` if the tree has changes), or ``unknown``."""
+def _head_commit() -> str:
+    """HEAD commit of the project now (with ``-dirty`` if the tree has changes), or ``unknown``."""
     try:
         sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=PROJECT_ROOT, capture_output=True, text=True, check=True).stdout.strip()
         dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=PROJECT_ROOT,
@@ -94,6 +94,15 @@ def git_commit() -> str:
         return sha + ("-dirty" if dirty else "")
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
+
+
+_COMMIT_AT_IMPORT = _head_commit()  # the code this process runs: a sweep's later jobs do not re-import it
+
+
+def git_commit() -> str:
+    """The project's commit when this process imported drapebench (``-dirty`` if the tree had changes then), or
+    ``unknown``: the code a run executes, even when the repository moves on while a long sweep runs."""
+    return _COMMIT_AT_IMPORT
 
 
 def environment(device: str) -> dict:

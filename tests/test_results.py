@@ -39,3 +39,14 @@ def test_report_does_not_import_the_pipeline():
     imported = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
     imported |= {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
     assert "drapebench.results" in imported and "drapebench.experiment" not in imported
+
+
+def test_a_run_records_the_commit_its_process_started_with(monkeypatch):
+    import subprocess
+
+    from drapebench import results
+
+    started = results.git_commit()
+    monkeypatch.setattr(subprocess, "run", lambda *a, **k: subprocess.CompletedProcess(a, 0, stdout="f" * 40, stderr=""))
+    assert results._head_commit().startswith("f" * 40)  # the repository moved on (a commit during a sweep) ...
+    assert results.git_commit() == started  # ... the runs of this process still name the code they run

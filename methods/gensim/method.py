@@ -88,7 +88,7 @@ class GenSim(DrapingMethod):
     # ------------------------------------------------------------------ the two stages
     def _new_net(self) -> PEN:
         p = self.p
-        return PEN(p["latent"], p["geometry"], p["steps"], p["direction"], p["magnitude_scale"], p["decoder"]).to(self.body.dtype)
+        return PEN(p["latent"], p["geometry"], p["steps"], p["direction"], p["magnitude_scale"], p["decoder"], p["decoder_init"]).to(self.body.dtype)
 
     def arap_stage(self, graph: GarmentGraph, betas: torch.Tensor, poses: torch.Tensor):
         """ARAP-deformed garment (T, V, 3), handle masks (T, V) bool and body motion d (T, V, 3), all in the

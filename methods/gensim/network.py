@@ -114,17 +114,21 @@ class PEN(nn.Module):
 
     ``decoder`` "eq1": Eq. 1's direction (``displacement_direction`` in mode ``direction``) times the magnitude
     w = magnitude_scale x softplus(raw), the output layer scaled by 0.01 with the magnitude's bias at -4 (a
-    start at about 0.2 mm); "local": :func:`local_frame_displacement` with scale ``magnitude_scale`` and
-    PyTorch's default output layer (b1, b2 the tangent coefficients, rho the normal one, w = |delta|)."""
+    start at about 0.2 mm); "local": :func:`local_frame_displacement` with scale ``magnitude_scale`` (b1, b2
+    the tangent coefficients, rho the normal one, w = |delta|) and, by ``decoder_init``, PyTorch's default
+    output layer ("default": a start at a few mm) or a zero one ("zero": softplus(0) / 100 x scale = 0.07 mm
+    along the normal; the output stays linear in the layer's weights, so it leaves zero)."""
 
     N_NODE = 3 * 4 + 2  # u, v, d, n, pin, mass
     N_EDGE = 8  # E_ij, |E_ij|, E_ij^ARAP, |E_ij^ARAP|
 
     def __init__(self, latent: int = 128, geometry: int = 32, steps: int = 8, direction: str = "tangent", magnitude_scale: float = 0.01,
-                 decoder: str = "local"):  # fmt: skip
+                 decoder: str = "local", decoder_init: str = "default"):  # fmt: skip
         super().__init__()
         if decoder not in ("eq1", "local"):
             raise ValueError(f"gensim decoder must be 'eq1' or 'local', not {decoder!r}")
+        if decoder_init not in ("default", "zero"):
+            raise ValueError(f"gensim decoder_init must be 'default' or 'zero', not {decoder_init!r}")
         self.direction, self.magnitude_scale, self.decoder_kind = direction, magnitude_scale, decoder
         self.garment_encoder = PointNetEncoder(geometry)
         self.body_encoder = PointNetEncoder(geometry)
@@ -133,6 +137,10 @@ class PEN(nn.Module):
         self.edge_updates = nn.ModuleList(EdgeUpdate(latent) for _ in range(steps))
         self.node_updates = nn.ModuleList(mlp(2 * latent, latent, latent) for _ in range(steps))
         self.decoder = mlp(latent, 4 if decoder == "eq1" else 3, latent, norm=False)
+        if decoder == "local" and decoder_init == "zero":
+            with torch.no_grad():
+                self.decoder[-1].weight.zero_()
+                self.decoder[-1].bias.zero_()
         if decoder == "eq1":
             with torch.no_grad():  # start near zero displacement: softplus(-4) x scale ~ 0.2 mm
                 self.decoder[-1].weight.mul_(0.01)
