@@ -27,6 +27,13 @@ from drapebench.progress import progress
 log = logging.getLogger("drapebench")
 WindowLoss = Callable[[int, torch.Tensor], tuple[torch.Tensor, dict[str, torch.Tensor]]]
 SOLVERS = ("lbfgs", "adam")
+# a method's ``method.params.optimum`` (its solver settings; see :func:`minimise`)
+SOLVER_DEFAULTS = dict(
+    solver="lbfgs",  # SOLVERS: lbfgs | adam
+    iterations=50,  # per frame: L-BFGS iterations (each one or more loss evaluations) or Adam steps
+    lr=1.0,  # L-BFGS step (1: the quasi-Newton step) or Adam's rate (m per step)
+    history=20,  # L-BFGS correction pairs
+)
 
 
 @dataclass

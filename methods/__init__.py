@@ -18,6 +18,7 @@ _REGISTRY: dict[str, str] = {
     "gaps_optimum": "methods.gaps:GapsOptimum",
     "pbs": "methods.pbs:PBSMethod",
     "gensim": "methods.gensim:GenSim",
+    "gensim_optimum": "methods.gensim:GensimOptimum",
     "vae": "methods.vae:VAEModel",
 }
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Any, Mapping
 
-from drapebench.optimum import SOLVERS
+from drapebench.optimum import SOLVER_DEFAULTS, SOLVERS
 from methods.params import method_params
 
 TRAIN_DEFAULTS = dict(
@@ -43,10 +43,7 @@ METHOD_DEFAULTS = dict(
     train=TRAIN_DEFAULTS,
 )
 OPTIMUM_DEFAULTS = dict(
-    solver="lbfgs",  # drapebench.optimum.SOLVERS: lbfgs | adam
-    iterations=50,  # per frame: L-BFGS iterations (each one or more loss evaluations) or Adam steps
-    lr=1.0,  # L-BFGS step (1: the quasi-Newton step) or Adam's rate (m per step)
-    history=20,  # L-BFGS correction pairs
+    **SOLVER_DEFAULTS,  # drapebench.optimum: solver, iterations, lr, history
     kext_epoch=None,  # the training epoch whose k_ext the loss uses; None: the end of train.kext_ramp_epochs (its final value)
 )
 CHOICES = dict(skinning=("rbf", "nearest", "smoothed"), shape_transfer=("none", "nearest", "rbf"), normalisation=("code", "batch"),

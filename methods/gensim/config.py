@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from typing import Any, Mapping
 
+from drapebench.optimum import SOLVER_DEFAULTS, SOLVERS
 from methods.gensim.losses import WEIGHTS
 from methods.params import method_params
 
@@ -72,3 +73,9 @@ def gensim_params(cfg: Mapping[str, Any] | None) -> dict:
     if p["train"]["threads"] is not None and int(p["train"]["threads"]) < 1:
         raise ValueError(f"gensim train.threads must be >= 1 or null, got {p['train']['threads']}")
     return p
+
+
+def optimum_params(cfg: Mapping[str, Any] | None) -> dict:
+    """The solver settings of ``gensim_optimum`` (``method.params.optimum``): :data:`drapebench.optimum.SOLVER_DEFAULTS`
+    updated by ``cfg``. Raises ValueError naming an unknown key or an invalid solver."""
+    return method_params("gensim_optimum", cfg, SOLVER_DEFAULTS, choices={"solver": SOLVERS})

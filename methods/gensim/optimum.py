@@ -1,0 +1,68 @@
+"""``gensim_optimum``: the drape that minimises GenSim's own training loss (Eq. 9, the configured reading)
+directly over the garment vertices, frame by frame from the ARAP stage, with no network
+(:mod:`drapebench.optimum`): the best PEN could reach on each frame. Eq. 1's half-space is not imposed, so
+it bounds PEN from below. Nothing is learned."""
+
+from __future__ import annotations
+
+import logging
+import time
+
+import numpy as np
+import torch
+
+from drapebench.optimum import optimise_sequence
+from methods.base import DrapeResult, FitReport
+from methods.gensim.config import optimum_params
+from methods.gensim.method import GenSim, garment_graph
+
+log = logging.getLogger("drapebench")
+
+
+class GensimOptimum(GenSim):
+    """GenSim's loss minimised per frame from its ARAP stage. ``cfg``: GenSim's parameters (the loss, the ARAP
+    stage, mu_fabric / sigma_fabric) plus ``optimum``, the solver settings (:data:`drapebench.optimum.SOLVER_DEFAULTS`)."""
+
+    name = "gensim_optimum"
+
+    def __init__(self, cfg=None):
+        cfg = dict(cfg or {})
+        self.o = optimum_params(cfg.pop("optimum", None))
+        super().__init__(cfg)
+
+    def fit(self, data, train_cfg=None) -> FitReport:
+        """Nothing to learn: binds the body and material and reads mu_fabric / sigma_fabric."""
+        self.bind(data.body, data.material)
+        self.fabric = self._fabric()
+        return FitReport()
+
+    def drape(self, garment, seq) -> DrapeResult:
+        """(T, V, 3) the optimum of Eq. 9 per frame; ``extras["arap"]``: the ARAP stage it starts from (world
+        frame, as GenSim's), so PEN's statistics measure the optimum's displacement."""
+        self._require_bound()
+        if self.fabric is None:
+            raise RuntimeError("gensim_optimum: call fit() first (it reads mu_fabric and sigma_fabric)")
+        t0 = time.perf_counter()
+        graph = garment_graph(garment, self.body, self.material)
+        betas = torch.zeros(self.body.n_betas, dtype=self.body.dtype)
+        given = seq.betas[: self.body.n_betas]
+        betas[: len(given)] = given.to(self.body.dtype)
+        t1 = time.perf_counter()
+        G, H, _, verts, normals, _ = self.arap_stage(graph, betas, seq.poses)
+        t2 = time.perf_counter()
+
+        def loss(t: int, window: torch.Tensor):
+            terms = self.terms(graph, window[-1:], G[t : t + 1], verts[t : t + 1], normals[t : t + 1])
+            return sum(terms.values()), terms
+
+        o = self.o
+        res = optimise_sequence(loss, G, 1, o["solver"], o["iterations"], o["lr"], o["history"])
+        t3 = time.perf_counter()
+        total = lambda terms: np.mean([sum(t.values()) for t in terms])  # noqa: E731
+        log.info("gensim_optimum: loss per frame %.4g at the ARAP stage -> %.4g (mean over %d frames, %.1f evaluations each)",
+                 total(res.start_terms), total(res.final_terms), seq.n_frames, np.mean(res.evaluations))  # fmt: skip
+        root = seq.transforms(self.body)[:, 0].to(G.dtype)  # aligned -> world
+        world = lambda y: y @ root[:, :3, :3].transpose(1, 2) + root[:, None, :3, 3]  # noqa: E731
+        ms = lambda a, b: (b - a) * 1e3  # noqa: E731
+        return DrapeResult(world(res.vertices), {"setup": ms(t0, t1), "arap": ms(t1, t2), "optimum": ms(t2, t3)},
+                           {"arap": world(G), "handles": H})  # fmt: skip
