@@ -88,7 +88,8 @@ class GenSim(DrapingMethod):
     # ------------------------------------------------------------------ the two stages
     def _new_net(self) -> PEN:
         p = self.p
-        return PEN(p["latent"], p["geometry"], p["steps"], p["direction"], p["magnitude_scale"], p["decoder"], p["decoder_init"]).to(self.body.dtype)
+        return PEN(p["latent"], p["geometry"], p["steps"], p["direction"], p["magnitude_scale"], p["decoder"], p["decoder_init"],
+                   p["input_norm"]).to(self.body.dtype)  # fmt: skip
 
     def arap_stage(self, graph: GarmentGraph, betas: torch.Tensor, poses: torch.Tensor):
         """ARAP-deformed garment (T, V, 3), handle masks (T, V) bool and body motion d (T, V, 3), all in the
@@ -109,10 +110,10 @@ class GenSim(DrapingMethod):
             D.append(d)
         return torch.stack(G), torch.stack(H), torch.stack(D), verts, normals, transforms
 
-    def pen(self, graph: GarmentGraph, G, d, body_vertices, body_normals, betas, geometry=None) -> tuple[torch.Tensor, torch.Tensor]:
-        """PEN's corrected garment G + delta (B, V, 3) and delta, for ARAP results G (B, V, 3), body motion
-        d (B, V, 3), front-aligned bodies (B, Vb, 3) with normals, and body shapes betas (B, S);
-        ``geometry``: :meth:`encode` of the garment and body shape when already computed."""
+    def features(self, graph: GarmentGraph, G, d, body_vertices, body_normals):
+        """PEN's inputs for ARAP results G (B, V, 3) with body motion d (B, V, 3) on front-aligned bodies (B, Vb, 3)
+        with normals: node features (B, V, 14) [u, G - nearest body vertex, d, its normal, pin, mass (g)], edge
+        features (B, 2E, 8) [E_ij, |E_ij|, E_ij^ARAP, |E_ij^ARAP|] (m), and the nearest body vertices."""
         nn = nearest_body_vertex(G, body_vertices, body_normals)
         B, V, _ = G.shape
         pin = graph.pin_mask.to(G.dtype)[None, :, None].expand(B, V, 1)
@@ -122,10 +123,30 @@ class GenSim(DrapingMethod):
         rest = graph.rest_edges[None].expand(B, -1, 3)
         arap_e = G[:, graph.receivers] - G[:, graph.senders]
         edge = torch.cat([rest, rest.norm(dim=-1, keepdim=True), arap_e, arap_e.norm(dim=-1, keepdim=True)], -1)
+        return node, edge, nn
+
+    def pen(self, graph: GarmentGraph, G, d, body_vertices, body_normals, betas, geometry=None) -> tuple[torch.Tensor, torch.Tensor]:
+        """PEN's corrected garment G + delta (B, V, 3) and delta, for ARAP results G (B, V, 3), body motion
+        d (B, V, 3), front-aligned bodies (B, Vb, 3) with normals, and body shapes betas (B, S);
+        ``geometry``: :meth:`encode` of the garment and body shape when already computed."""
+        node, edge, nn = self.features(graph, G, d, body_vertices, body_normals)
         geometry = self.encode(graph, betas) if geometry is None else geometry
-        index = graph.binding.nu[None].expand(B, V)
+        index = graph.binding.nu[None].expand(G.shape[0], -1)  # each vertex's canonical closest body vertex: its body feature
         delta, _ = self.net(node, edge, graph.senders, graph.receivers, graph.template, None, index, nn.normal, geometry)
         return G + delta, delta
+
+    def input_statistics(self, n_items: int = 64) -> tuple[torch.Tensor, ...]:
+        """Mean and std of PEN's node (14,) and edge (8,) inputs over about ``n_items`` training frames spread over
+        the training garments (what ``input_norm`` standardises the inputs with)."""
+        picked = np.unique(np.linspace(0, len(self._items) - 1, min(n_items, len(self._items))).round().astype(int))
+        nodes, edges = [], []
+        with torch.no_grad():
+            for graph, G, d, verts, normals, _, _ in self._batch(picked, None):
+                node, edge, _ = self.features(graph, G, d, verts, normals)
+                nodes.append(node.flatten(0, 1))
+                edges.append(edge.flatten(0, 1))
+        node, edge = torch.cat(nodes), torch.cat(edges)
+        return node.mean(0), node.std(0), edge.mean(0), edge.std(0)
 
     def encode(self, graph: GarmentGraph, betas: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """PEN's PointNet features of the garment template and of the rest bodies of shapes betas (B, S) (one
@@ -174,6 +195,8 @@ class GenSim(DrapingMethod):
         torch.manual_seed(budget.seed)
         self.net = self._new_net()
         self._graphs, self._items = self._training_frames(budget.seed)
+        if self.p["input_norm"]:
+            self.net.set_input_statistics(*self.input_statistics())
         key = content_hash(self.p, budget, body_key(self.body), data.material, self.fabric,
                            [(g.template, g.topology.faces) for g in self._graphs])  # fmt: skip
         objective = Objective("gensim", [{"params": list(self.net.parameters()), "lr_factor": 1.0}], len(self._items),

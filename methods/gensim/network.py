@@ -117,14 +117,20 @@ class PEN(nn.Module):
     start at about 0.2 mm); "local": :func:`local_frame_displacement` with scale ``magnitude_scale`` (b1, b2
     the tangent coefficients, rho the normal one, w = |delta|) and, by ``decoder_init``, PyTorch's default
     output layer ("default": a start at a few mm) or a zero one ("zero": softplus(0) / 100 x scale = 0.07 mm
-    along the normal; the output stays linear in the layer's weights, so it leaves zero)."""
+    along the normal; the output stays linear in the layer's weights, so it leaves zero). With ``input_norm`` the
+    node and edge inputs are standardised by the statistics given to :meth:`set_input_statistics`."""
 
     N_NODE = 3 * 4 + 2  # u, v, d, n, pin, mass
     N_EDGE = 8  # E_ij, |E_ij|, E_ij^ARAP, |E_ij^ARAP|
 
     def __init__(self, latent: int = 128, geometry: int = 32, steps: int = 8, direction: str = "tangent", magnitude_scale: float = 0.01,
-                 decoder: str = "local", decoder_init: str = "default"):  # fmt: skip
+                 decoder: str = "local", decoder_init: str = "default", input_norm: bool = False):  # fmt: skip
         super().__init__()
+        self.input_norm = bool(input_norm)
+        if self.input_norm:  # standardised node and edge inputs (set_input_statistics), saved with the weights
+            for name, n in (("node", self.N_NODE), ("edge", self.N_EDGE)):
+                self.register_buffer(f"{name}_mean", torch.zeros(n))
+                self.register_buffer(f"{name}_std", torch.ones(n))
         if decoder not in ("eq1", "local"):
             raise ValueError(f"gensim decoder must be 'eq1' or 'local', not {decoder!r}")
         if decoder_init not in ("default", "zero"):
@@ -147,6 +153,17 @@ class PEN(nn.Module):
                 self.decoder[-1].bias.zero_()
                 self.decoder[-1].bias[3] = -4.0
 
+    def set_input_statistics(self, node_mean, node_std, edge_mean, edge_std, min_std: float = 1e-6) -> None:
+        """Store the mean and std of the node (N_NODE,) and edge (N_EDGE,) inputs that ``input_norm`` standardises
+        with (a std below ``min_std``, a constant input, counts as ``min_std``)."""
+        if not self.input_norm:
+            raise ValueError("PEN was built without input_norm: it has no input statistics to set")
+        with torch.no_grad():
+            self.node_mean.copy_(node_mean)
+            self.node_std.copy_(node_std.clamp_min(min_std))
+            self.edge_mean.copy_(edge_mean)
+            self.edge_std.copy_(edge_std.clamp_min(min_std))
+
     def encode_geometry(self, garment_points: torch.Tensor, body_points: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """PointNet features of the garment template (V, 3) -> (1, V, g) and of the bodies (B or 1, Vb, 3) -> (B or 1, Vb, g)."""
         return self.garment_encoder(garment_points[None]), self.body_encoder(body_points)
@@ -154,6 +171,9 @@ class PEN(nn.Module):
     def forward(self, node_inputs, edge_inputs, senders, receivers, garment_points, body_points, body_index, normal, geometry=None):
         """See the class docstring; ``geometry``: :meth:`encode_geometry`'s output when already computed."""
         B, V, _ = node_inputs.shape
+        if self.input_norm:
+            node_inputs = (node_inputs - self.node_mean) / self.node_std
+            edge_inputs = (edge_inputs - self.edge_mean) / self.edge_std
         f_gar, f_body_all = geometry if geometry is not None else self.encode_geometry(garment_points, body_points)
         f_gar, f_body_all = f_gar.expand(B, -1, -1), f_body_all.expand(B, -1, -1)
         f_body = torch.gather(f_body_all, 1, body_index[..., None].expand(-1, -1, f_body_all.shape[-1]))

@@ -172,6 +172,21 @@ def test_zero_initialised_local_decoder_starts_at_the_normal_offset_and_learns()
         PEN(decoder_init="small")
 
 
+def test_input_norm_standardises_pens_inputs_with_the_stored_statistics():
+    net, inputs, _ = _tiny_pen_inputs("local")
+    normed = PEN(latent=16, geometry=8, steps=2, decoder="local", input_norm=True)
+    normed.load_state_dict({**net.state_dict(), **{k: v for k, v in normed.state_dict().items() if k.endswith(("_mean", "_std"))}})
+    node, edge = inputs[0], inputs[1]
+    stats = node.flatten(0, 1).mean(0), node.flatten(0, 1).std(0), edge.flatten(0, 1).mean(0), edge.flatten(0, 1).std(0)
+    normed.set_input_statistics(*stats)
+    standardised = ((node - stats[0]) / stats[1], (edge - stats[2]) / stats[3], *inputs[2:])
+    assert torch.allclose(normed(*inputs)[0], net(*standardised)[0], atol=1e-6)
+    assert not torch.allclose(normed(*inputs)[0], net(*inputs)[0], atol=1e-6)
+    assert "node_std" in normed.state_dict() and "node_std" not in net.state_dict()  # saved with the weights
+    with pytest.raises(ValueError, match="without input_norm"):
+        net.set_input_statistics(*stats)
+
+
 # ---------------------------------------------------------------------- losses against hand computations
 def test_restrain_term_as_printed_and_as_configured():
     verts, topo = _sheet(2, 1.0)  # unit square, 5 edges
