@@ -1,0 +1,79 @@
+"""Where a VAE run's distance from the reference comes from, on its own test scene.
+
+Run: python -m methods.vae.diagnose <run directory of a vae run> [...]
+
+Per run (its config.yaml and checkpoint), the mean vertex distance to the reference drape (mm, frames after the
+transition) of: ``regressed``, the drape (regressor -> decoder -> posing); ``oracle code``, the decoder's output for
+the encoder's posterior mean of the reference's own canonical projection, posed (the best drape the regressor
+could ask of this decoder); ``canonical``, the reference's canonical projection posed again (what the canonical
+space itself costs). ``code gap`` is the distance between the regressed and the oracle codes in units of the
+training codes' std per dimension (RMS over dimensions, mean over frames): a large gap with a small oracle error
+puts the error in the regressor.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import torch
+from omegaconf import OmegaConf
+
+from methods.vae.garment_model import pose_garments
+from methods.vae.method import POSE_CHUNK
+
+
+def _posed(method, X: torch.Tensor, seq) -> torch.Tensor:
+    """Canonical garments X (T, V, 3) posed on ``seq`` (T, V, 3), m."""
+    A = seq.transforms(method.body).to(method.body.dtype)
+    betas = method.body.full_betas(seq.betas)
+    return torch.cat([pose_garments(method.diffused, X[i : i + POSE_CHUNK], betas, A[i : i + POSE_CHUNK]) for i in range(0, len(X), POSE_CHUNK)])
+
+
+def diagnose(run_dir: Path) -> dict[str, float]:
+    """The numbers of the module docstring for the vae run in ``run_dir`` (its checkpoint must still be in the cache)."""
+    import methods
+    from drapebench.body import load_body
+    from drapebench.body.motion_file import sequence_from_config
+    from drapebench.experiment import _reference
+    from drapebench.garments import garment_from_config
+    from drapebench.physics import Material
+
+    cfg = OmegaConf.load(run_dir / "config.yaml")
+    ckpt = json.loads((run_dir / "metrics.json").read_text()).get("checkpoint")
+    if not ckpt or not Path(ckpt).exists():
+        raise FileNotFoundError(f"{run_dir}: its checkpoint {ckpt!r} is not in the cache; rerun the run to train it again")
+    body = load_body(cfg.body.name)
+    material = Material.from_config(OmegaConf.to_container(cfg.material, resolve=True))
+    seq = sequence_from_config(OmegaConf.to_container(cfg.motion, resolve=True), body)
+    garment = garment_from_config(OmegaConf.to_container(cfg.garment, resolve=True), body, seq.betas)
+    reference = _reference(cfg, garment, seq, body, material)
+    if reference is None:
+        raise ValueError(f"{run_dir}: the run has no reference drape (reference.solver is null)")
+    m = methods.get(cfg.method.impl)(OmegaConf.to_container(cfg.method.params, resolve=True))
+    m.bind(body, material)
+    m.load_state_dict(torch.load(ckpt, map_location="cpu", weights_only=False)["method"])
+    start = int(seq.n_transition)
+    error = lambda x: float((x[start:] - reference[start:]).norm(dim=-1).mean() * 1e3)  # noqa: E731
+    X = m._project(garment, [seq], [reference]).X[0]  # an optimisation per frame (cached by content)
+    with torch.no_grad():
+        oracle, _ = m.vae.encode(X)
+        regressed = m.regressor(m._descriptor(seq)[None])[0][0]
+        gap = ((regressed - oracle) / m.vae.code_std).pow(2).mean(-1).sqrt()[start:].mean()
+        return {"regressed": error(m.drape(garment, seq).vertices), "oracle code": error(_posed(m, m.vae.decode(oracle), seq)),
+                "canonical": error(_posed(m, X, seq)), "code gap": float(gap)}  # fmt: skip
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("runs", nargs="+", type=Path, help="run directories of vae runs (with config.yaml and metrics.json)")
+    args = parser.parse_args(argv)
+    print("run | regressed (mm) | oracle code (mm) | canonical (mm) | code gap (std)")
+    for run in args.runs:
+        d = diagnose(run)
+        print(f"{run.name} | {d['regressed']:.2f} | {d['oracle code']:.2f} | {d['canonical']:.2f} | {d['code gap']:.2f}")
+
+
+if __name__ == "__main__":
+    main()
