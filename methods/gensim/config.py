@@ -38,7 +38,7 @@ METHOD_DEFAULTS = dict(
     decoder="local",  # local (Eq. 1's half-space in the normal's local frame) | eq1 (Eq. 1's direction x magnitude)
     direction="tangent",  # decoder eq1: tangent | paper (Eq. 1 as printed, b3 = (-b1 n1 - b2 n2) / n3)
     magnitude_scale=0.01,  # m: the local decoder's scale, or eq1's magnitude w = scale x softplus(raw)
-    input_norm=False,  # standardise PEN's node and edge inputs by their mean and std over training frames
+    input_norm=True,  # standardise PEN's node and edge inputs by their mean and std over training frames
     decoder_init="default",  # local decoder's output layer: default (PyTorch's: starts at a few mm) | zero (starts at 0.07 mm)
     eps=-0.5,  # handle threshold on tau (Alg. 2)
     handle_side="pushed",  # pushed | printed (Alg. 2 line 6 as printed)
