@@ -503,3 +503,14 @@ def test_a_method_s_scored_variants_get_the_same_metrics_suffixed_with_their_nam
     rec = run(_compose([*FAST, "viz=none"]), tmp_path / "run")
     assert rec["eps_c@lifted"] != rec["eps_c"] and "eps_e@lifted" in rec and not any(k.endswith("@lifted") and k.startswith("ms_") for k in rec)
     assert metric_label("eps_c@lifted") == "ε_c (%) [lifted]" and "variant" in legend(["eps_c@lifted"])
+
+
+def test_the_vae_on_data_cpu_has_no_shape_input_and_the_paper_preset_keeps_the_papers():
+    import methods
+
+    for overrides, betas in ((["method=vae"], 0), (["method=vae_no_collision"], 0), (["method=vae", "data=paper"], None)):
+        cfg = _compose(overrides).method
+        params = OmegaConf.to_container(cfg.params, resolve=True)
+        assert params.get("regressor", {}).get("betas") == betas, overrides
+        expected = 10 if betas is None else betas  # the code's default is the paper's beta in R^10
+        assert methods.get(cfg.impl)(params).p["regressor"]["betas"] == expected
