@@ -121,7 +121,7 @@ CLAIMS = [
                  "inside the canonical body, after training (vae_table1's column; the per-epoch curves are vae_fig4.png).",), **V1),
     Claim("vto_f4_selfsup_curve", "VTO Fig. 4", "with the self-supervised term the test set's collisions fall close to 0 during training, without it they do not",
           "two curves, the self-supervised one near 0 (no number)", "untested", table="vae_fig4",
-          why="the curves are a plot (vae_fig4.png) without a CSV; on data=cpu both are 0 after the first epoch"),
+          why="the curves are a plot (vae_fig4.png) without a CSV; vto_f4_selfsup_samples tests the trained models' decoded samples"),
     Claim("vto_t2_runtime_level", "VTO Table 2", "the T-shirt's whole inference (regressor + decoder + posing) in a few ms per frame",
           "T-shirt 1.7 + 1.6 + 1.4 = 4.7 ms; dress 1.7 + 3.5 + 2.9 = 8.1 ms (GTX 1080 Ti)", "level", metrics=("total (ms)",),
           row="tshirt", bound=4.7, comparable=False, **V2),
