@@ -327,9 +327,7 @@ class GenSim(DrapingMethod):
             raise RuntimeError("gensim: not trained; call fit() or load_state_dict() first")
         t0 = time.perf_counter()
         graph = garment_graph(garment, self.body, self.material)
-        betas = torch.zeros(self.body.n_betas, dtype=self.body.dtype)
-        given = seq.betas[: self.body.n_betas]
-        betas[: len(given)] = given.to(self.body.dtype)
+        betas = self.sequence_shape(seq)
         t1 = time.perf_counter()
         G, H, D, verts, normals, _ = self.arap_stage(graph, betas, seq.poses)
         t2 = time.perf_counter()
@@ -344,13 +342,23 @@ class GenSim(DrapingMethod):
                     xs.append(self.pen(graph, G[s:e], D[s:e], verts[s:e], normals[s:e], betas[None].expand(e - s, -1), geometry)[0])
             x = torch.cat(xs)
         t3 = time.perf_counter()
-        root = seq.transforms(self.body)[:, 0].to(x.dtype)  # the root's skinning transform: aligned -> world
-        world = lambda y: y @ root[:, :3, :3].transpose(1, 2) + root[:, None, :3, 3]  # noqa: E731
-        x, G = world(x), world(G)
+        x, G = self.to_world(seq, x, G)
         t4 = time.perf_counter()
         ms = lambda a, b: (b - a) * 1e3  # noqa: E731
         extras = {"arap": G, "handles": H} if self.p["stage"] == "full" else {"handles": H}
         return DrapeResult(x.clone(), {"setup": ms(t0, t1), "arap": ms(t1, t2), "pen": ms(t2, t3), "pose": ms(t3, t4)}, extras)
+
+    def sequence_shape(self, seq) -> torch.Tensor:
+        """(S,) the body shape of ``seq`` in the body's betas (zeros where the sequence gives fewer)."""
+        betas = torch.zeros(self.body.n_betas, dtype=self.body.dtype)
+        given = seq.betas[: self.body.n_betas]
+        betas[: len(given)] = given.to(self.body.dtype)
+        return betas
+
+    def to_world(self, seq, *drapes: torch.Tensor) -> list[torch.Tensor]:
+        """Drapes (T, V, 3) in the front-aligned frame moved to the world by each frame's root transform of ``seq``."""
+        root = seq.transforms(self.body)[:, 0].to(drapes[0].dtype)  # the root's skinning transform: aligned -> world
+        return [y @ root[:, :3, :3].transpose(1, 2) + root[:, None, :3, 3] for y in drapes]
 
     def diagnostics(self, garment, seq, result: DrapeResult) -> dict:
         """PEN's displacement from the ARAP stage over the vertices of every frame after the transition: mean,

@@ -44,11 +44,8 @@ class GensimOptimum(GenSim):
             raise RuntimeError("gensim_optimum: call fit() first (it reads mu_fabric and sigma_fabric)")
         t0 = time.perf_counter()
         graph = garment_graph(garment, self.body, self.material)
-        betas = torch.zeros(self.body.n_betas, dtype=self.body.dtype)
-        given = seq.betas[: self.body.n_betas]
-        betas[: len(given)] = given.to(self.body.dtype)
         t1 = time.perf_counter()
-        G, H, _, verts, normals, _ = self.arap_stage(graph, betas, seq.poses)
+        G, H, _, verts, normals, _ = self.arap_stage(graph, self.sequence_shape(seq), seq.poses)
         t2 = time.perf_counter()
 
         def loss(t: int, window: torch.Tensor):
@@ -61,8 +58,6 @@ class GensimOptimum(GenSim):
         total = lambda terms: np.mean([sum(t.values()) for t in terms])  # noqa: E731
         log.info("gensim_optimum: loss per frame %.4g at the ARAP stage -> %.4g (mean over %d frames, %.1f evaluations each)",
                  total(res.start_terms), total(res.final_terms), seq.n_frames, np.mean(res.evaluations))  # fmt: skip
-        root = seq.transforms(self.body)[:, 0].to(G.dtype)  # aligned -> world
-        world = lambda y: y @ root[:, :3, :3].transpose(1, 2) + root[:, None, :3, 3]  # noqa: E731
+        x, G = self.to_world(seq, res.vertices, G)
         ms = lambda a, b: (b - a) * 1e3  # noqa: E731
-        return DrapeResult(world(res.vertices), {"setup": ms(t0, t1), "arap": ms(t1, t2), "optimum": ms(t2, t3)},
-                           {"arap": world(G), "handles": H})  # fmt: skip
+        return DrapeResult(x, {"setup": ms(t0, t1), "arap": ms(t1, t2), "optimum": ms(t2, t3)}, {"arap": G, "handles": H})
