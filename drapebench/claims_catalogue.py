@@ -13,7 +13,6 @@ T2 = dict(table="gaps_table2", command="python run.py -m experiment=gaps_table2"
 T3 = dict(table="gaps_table3", command="python run.py -m experiment=gaps_table3")
 T4 = dict(table="gaps_table4", command="python run.py -m experiment=gaps_table1 (then --table runtime)")
 G2 = dict(table="gensim_table2", command="python run.py -m experiment=gensim_table2")
-GA = dict(table="gensim_ablation", command="python run.py -m experiment=gensim_table2 (ablation rows)")
 F10 = dict(table="gensim_fig10", command="python run.py -m experiment=gensim_fig10 seed=0,1,2 threads=1")
 GP = dict(table="gensim_pen", command="python run.py -m experiment=gensim_pen seed=0,1,2 threads=1")
 GARMENTS_PEN = ("tshirt", "skirt", "dress")

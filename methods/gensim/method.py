@@ -15,8 +15,8 @@ import torch
 from drapebench.cache import Cache, body_key, content_hash
 from drapebench.garments.pins import garment_pins
 from drapebench.geometry.ops import vertex_normals
-from drapebench.geometry.topology import boundary_loops
 from drapebench.geometry.proximity import nearest_body_vertex
+from drapebench.geometry.topology import boundary_loops
 from drapebench.progress import progress
 from drapebench.train import Objective, train, train_config
 from methods.base import DrapeResult, DrapingMethod, FitReport
