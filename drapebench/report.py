@@ -32,7 +32,7 @@ TABLES = {
     "gaps_table3": (["eps_e", "eps_a"], "shape"),
     "runtime": (["train_s", "ms_per_frame"], "garment"),
     "physics": (["eps_e", "eps_c", "penetration_mm", "jitter", "smoothness"], "garment"),
-    "vae_table1": (["eps_c", "eps_c_canonical", "sampled_prior_pct", "sampled_codes_pct", "vertex_error_mm", "ms_per_frame"], "shape"),
+    "vae_table1": (["eps_c", "eps_c_canonical", "sampled_prior_pct", "sampled_codes_pct", "vertex_error_mm", "ms_per_frame"], "case"),
     "runtime_vs_error": (["ms_per_frame", "vertex_error_mm", "eps_e", "eps_a", "eps_c", "train_s"], "garment"),
     "gensim_table2": (["edge_mm", "smoothness", "eps_c", "vertex_error_mm"], "garment"),
     "gensim_ablation": (["eps_e", "edge_mm", "smoothness", "eps_c", "vertex_error_mm"], "garment"),
@@ -108,8 +108,13 @@ def with_energy(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def with_scene(df: pd.DataFrame) -> pd.DataFrame:
-    """``df`` with a ``scene`` column, "<garment> <motion>", the column groups of a table over several motions."""
-    return df.assign(scene=df["garment"].astype(str) + " " + df["motion"].astype(str)) if {"garment", "motion"} <= set(df) else df
+    """``df`` with a ``scene`` column, "<garment> <motion>", and a ``case`` column, "<motion> <body shape>": the
+    column groups of tables over several motions (and shapes)."""
+    if {"garment", "motion"} <= set(df):
+        df = df.assign(scene=df["garment"].astype(str) + " " + df["motion"].astype(str))
+    if {"motion", "shape"} <= set(df):
+        df = df.assign(case=df["motion"].astype(str) + " " + df["shape"].astype(str))
+    return df
 
 
 def collect_failures(dirs) -> pd.DataFrame:

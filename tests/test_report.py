@@ -54,8 +54,11 @@ def test_shape_columns_for_the_body_shape_table(tmp_path):
         rec = json.loads(f.read_text())
         rec["shape"] = "mean" if i % 2 == 0 else "b1=-2"
         f.write_text(json.dumps(rec))
-    t = table(collect([tmp_path / "runs"]), ["eps_e"], group="shape")
+    df = collect([tmp_path / "runs"])
+    t = table(df, ["eps_e"], group="shape")
     assert list(t.columns.get_level_values(0).unique()) == ["mean", "b1=-2"] and t.columns.names == ["shape", "metric"]
+    cases = table(df, ["eps_e"], group="case")  # one column group per motion and body shape
+    assert set(cases.columns.get_level_values(0)) == {f"{m} {s}" for m, s in zip(df["motion"], df["shape"])}
     with pytest.raises(KeyError, match="no 'shape' column"):
         table(collect([FIXTURES]), ["eps_e"], group="shape")
 

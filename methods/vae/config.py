@@ -39,9 +39,12 @@ REGRESSOR_DEFAULTS = dict(
     betas=10,  # leading body-shape components in the regressor's input (the paper: beta in R^10; the public model: 4; 0: none)
     root="world",  # root translation velocity/acceleration: world (3 components, the paper's text) | vertical (z only, the public model)
     pose_steps=1500,  # training steps of the pose descriptor's autoencoder (batch 256)
+    pose_sequences=16,  # generated sequences per motion kind of the training sequences that the pose descriptor also trains on (0: the training poses only)
     hidden=256,
     layers=2,
     window=30,  # frames per training window (the GRU starts from a zero state)
+    window_stride=5,  # frames between the starts of consecutive training windows
+    select="validation",  # validation: keep the epoch's weights of lowest code error on the held-out validation sequences (val_sequences) | last
     velocity=1.0,  # rho_1 of Eq. 18
     acceleration=1.0,  # rho_2
     schedule=dict(epochs=150, batch_size=8, lr=1.0e-3, lr_after=1.0e-4, lr_switch_epoch=120, ema_decay=None,
@@ -63,7 +66,7 @@ def vae_params(cfg: Mapping[str, Any] | None) -> dict:
     p = method_params("vae", cfg, METHOD_DEFAULTS, {"projection": PROJECTION_DEFAULTS, "vae": VAE_DEFAULTS,
                                                      "regressor": REGRESSOR_DEFAULTS})  # fmt: skip
     for section, key, allowed in (("projection", "init", ("inverse_skinning", "previous")), ("regressor", "pose", ("learned", "rotations")),
-                                  ("regressor", "root", ("world", "vertical"))):  # fmt: skip
+                                  ("regressor", "root", ("world", "vertical")), ("regressor", "select", ("validation", "last"))):  # fmt: skip
         if p[section][key] not in allowed:
             raise ValueError(f"vae parameter {section}.{key} must be one of {', '.join(allowed)}, not {p[section][key]!r}")
     scale = p["vae"]["sample_scale"]
@@ -71,6 +74,9 @@ def vae_params(cfg: Mapping[str, Any] | None) -> dict:
         raise ValueError(f"vae parameter vae.sample_scale must be prior, codes or a positive number, not {scale!r}")
     if not 0 <= float(p["vae"]["kl_warmup"]) < 1:
         raise ValueError(f"vae parameter vae.kl_warmup must be a fraction of the steps in [0, 1), got {p['vae']['kl_warmup']}")
+    for key in ("pose_sequences", "window_stride"):
+        if int(p["regressor"][key]) < (1 if key == "window_stride" else 0):
+            raise ValueError(f"vae parameter regressor.{key} must be >= {1 if key == 'window_stride' else 0}, got {p['regressor'][key]}")
     if int(p["regressor"]["betas"]) < 0:
         raise ValueError(f"vae parameter regressor.betas must be >= 0 (leading shape components), got {p['regressor']['betas']}")
     if int(p["vae"]["latent"]) < 1:

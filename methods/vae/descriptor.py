@@ -6,9 +6,13 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import torch
 
 from drapebench.body.lbs import axis_angle_to_matrix
+from drapebench.body.motions import generate
+
+GENERATED_POSE_SEED = 60000  # first seed of the generated pose sequences (the data presets draw theirs from 40000)
 
 
 def euler_zxy(R: torch.Tensor) -> torch.Tensor:
@@ -34,6 +38,14 @@ def derivative(x: torch.Tensor, fps: float) -> torch.Tensor:
 def pose_rotations(poses: torch.Tensor) -> torch.Tensor:
     """Rotation matrices (T, J-1, 3, 3) of the non-root joints of poses (T, J, 3) (axis-angle, rad)."""
     return axis_angle_to_matrix(poses[:, 1:])
+
+
+def generated_poses(motions, per_motion: int, n_frames: int, transition: int, fps: float) -> torch.Tensor:
+    """Poses (N, 22, 3) rad of ``per_motion`` generated sequences (``transition`` + ``n_frames`` frames at ``fps``,
+    default motion parameters, seeds from GENERATED_POSE_SEED) of each motion kind in ``motions``, N =
+    len(motions) * per_motion * (transition + n_frames)."""
+    poses = [generate(m, n_frames, fps, GENERATED_POSE_SEED + i, transition)[0] for m in sorted(set(motions)) for i in range(per_motion)]
+    return torch.as_tensor(np.concatenate(poses)) if poses else torch.zeros(0, 22, 3)
 
 
 ROOT_CHOICES = ("world", "vertical")

@@ -6,7 +6,9 @@ diffused body model. One model per garment, supervised by physics-based referenc
 
 from __future__ import annotations
 
+import copy
 import logging
+import math
 import time
 
 import torch
@@ -16,7 +18,7 @@ from drapebench.train import Objective, train, train_config
 from methods.base import DrapeResult, DrapingMethod, FitReport
 from methods.vae import losses
 from methods.vae.config import vae_params
-from methods.vae.descriptor import motion_descriptor, pose_rotations
+from methods.vae.descriptor import generated_poses, motion_descriptor, pose_rotations
 from methods.vae.garment_model import pose_garments
 from methods.vae.network import GarmentVAE, PoseDescriptor, Regressor
 from methods.vae.projection import Projection, project_sequences
@@ -97,7 +99,7 @@ class VAEModel(DrapingMethod):
     def fit(self, data, train_cfg=None) -> FitReport:
         """Project the reference drapes of ``data`` (TrainData with references) to the canonical space, train
         the VAE on them, then the pose descriptor and the regressor; ``train_cfg`` is the shared budget
-        (its ``log_dir`` gets ``losses.csv`` of the regressor and ``vae/losses.csv``, ``vae/evaluations.csv``)."""
+        (its ``log_dir`` gets ``vae/`` and ``regressor/``, each with ``losses.csv`` and ``evaluations.csv``)."""
         t0 = time.perf_counter()
         self.bind(data.body, data.material)
         garment = data.garment
@@ -118,13 +120,13 @@ class VAEModel(DrapingMethod):
         res = self._train_vae(train_X.flatten(0, 1), val_X.flatten(0, 1), train_cfg, log_dir)
         history += [{"stage": "vae", **h} for h in res.history]
         self.evaluations = res.evaluations
-        with torch.no_grad():
-            codes = torch.stack([self.vae.encode(x)[0] for x in train_X])  # (N, T, latent): the posterior means
+        with torch.no_grad():  # (N, T, latent): the posterior means
+            codes, val_codes = (torch.stack([self.vae.encode(x)[0] for x in X]) for X in (train_X, val_X))
         train_seqs = seqs[:-n_val]
         if self.p["regressor"]["pose"] == "learned":
             res_pose = self._train_pose(train_seqs, train_cfg)
             history += [{"stage": "pose", **h} for h in res_pose.history]
-        res_r = self._train_regressor(train_seqs, codes, train_cfg, log_dir)
+        res_r = self._train_regressor(train_seqs, codes, train_cfg, log_dir, (seqs[-n_val:], val_codes))
         history += [{"stage": "regressor", **h} for h in res_r.history]
         return FitReport(train_s=time.perf_counter() - t0, n_steps=len(history), final_losses=res_r.history[-1] if res_r.history else {},
                          history=history, evaluations=self.evaluations)  # fmt: skip
@@ -217,12 +219,16 @@ class VAEModel(DrapingMethod):
                     "code_norm": float(mu.norm(dim=-1).mean()), "kl_per_sample": float(losses.kl_divergence(mu, logvar).mean())}  # fmt: skip
 
     def _train_pose(self, seqs, train_cfg: dict):
-        """Train the learned pose descriptor (an autoencoder of the training poses' non-root rotations)."""
+        """Train the learned pose descriptor (an autoencoder of the non-root rotations of the training poses and of
+        ``regressor.pose_sequences`` generated sequences per motion kind of the training sequences)."""
         r = self.p["regressor"]
         budget = self._budget(train_cfg, POSE_SCHEDULE, r["pose_steps"])
         torch.manual_seed(budget.seed)
         self.pose = PoseDescriptor(self.body.n_joints, int(r["pose_code"])).to(self.body.dtype)
-        R = torch.cat([pose_rotations(s.poses.to(self.body.dtype)) for s in seqs])
+        first = seqs[0]
+        generated = generated_poses([s.motion for s in seqs], int(r["pose_sequences"]), len(first.poses) - int(first.n_transition),
+                                    int(first.n_transition), float(first.fps))  # fmt: skip
+        R = pose_rotations(torch.cat([*(s.poses for s in seqs), generated]).to(self.body.dtype))
         key = content_hash(r["pose_code"], budget, R, "pose")
 
         def terms(b, at):
@@ -235,8 +241,11 @@ class VAEModel(DrapingMethod):
             q.requires_grad_(False)
         return res
 
-    def _train_regressor(self, seqs, codes: torch.Tensor, train_cfg: dict, log_dir):
-        """Train the GRU regressor (Eq. 18) on windows of the training sequences' descriptors and latent codes (N, T, latent)."""
+    def _train_regressor(self, seqs, codes: torch.Tensor, train_cfg: dict, log_dir, validation=None):
+        """Train the GRU regressor (Eq. 18) on windows of the training sequences' descriptors and latent codes
+        (N, T, latent). ``validation`` (sequences, their codes (M, T, latent)) is scored after every epoch (mean
+        L1 code error over whole sequences, ``regressor/evaluations.csv``); with ``regressor.select: validation``
+        the weights of the epoch that scored lowest are kept."""
         r = self.p["regressor"]
         budget = self._budget(train_cfg, r["schedule"])
         desc = torch.stack([self._descriptor(s) for s in seqs])  # (N, T, D)
@@ -248,16 +257,32 @@ class VAEModel(DrapingMethod):
             self.regressor.input_mean.copy_(flat.mean(0))
             self.regressor.input_std.copy_(flat.std(0).clamp_min(1e-6))
         T, W = desc.shape[1], min(int(r["window"]), desc.shape[1])
-        starts = [(n, s) for n in range(len(seqs)) for s in range(0, T - W + 1, max(1, W // 2))]
+        starts = [(n, s) for n in range(len(seqs)) for s in range(0, T - W + 1, int(r["window_stride"]))]
 
         def batch(idx, at):
             rows = [starts[i] for i in idx]
             return (torch.stack([desc[n, s : s + W] for n, s in rows]), torch.stack([codes[n, s : s + W] for n, s in rows]))
 
-        key = content_hash(r, budget, desc, codes, "regressor")
+        evaluate, best = None, {"error": math.inf, "state": None, "epoch": None}
+        if validation is not None and len(validation[0]):
+            val_desc = [self._descriptor(s)[None] for s in validation[0]]
+
+            def evaluate():
+                error = float(torch.stack([(self.regressor(d)[0][0] - c).abs().mean() for d, c in zip(val_desc, validation[1])]).mean())
+                if error < best["error"]:
+                    best.update(error=error, state=copy.deepcopy(self.regressor.state_dict()), epoch=len(best.get("errors", [])))
+                best.setdefault("errors", []).append(error)
+                return {"val_position": error}
+
+        key = content_hash(r, budget, desc, codes, None if validation is None else validation[1], "regressor")
         objective = Objective("vae_regressor", [{"params": list(self.regressor.parameters()), "lr_factor": 1.0}], len(starts),
-                              batch, lambda b, at: losses.regressor_terms(self.regressor(b[0])[0], b[1], r), key)  # fmt: skip
-        return train(objective, budget, log_dir=log_dir)
+                              batch, lambda b, at: losses.regressor_terms(self.regressor(b[0])[0], b[1], r), key, evaluate)  # fmt: skip
+        res = train(objective, budget, log_dir=None if log_dir is None else f"{log_dir}/regressor")
+        if r["select"] == "validation" and best["state"] is not None:
+            self.regressor.load_state_dict(best["state"])
+            log.info("vae regressor: kept epoch %d of %d (validation code error %.4g; last epoch %.4g)", best["epoch"] + 1,
+                     len(best["errors"]), best["error"], best["errors"][-1])  # fmt: skip
+        return res
 
     # ------------------------------------------------------------------ inference
     def drape(self, garment, seq) -> DrapeResult:

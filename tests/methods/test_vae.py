@@ -15,7 +15,7 @@ from drapebench.geometry.proximity import nearest_indices
 from drapebench.geometry.topology import get_topology
 from methods.vae import losses
 from methods.vae.config import vae_params
-from methods.vae.descriptor import derivative, euler_zxy, motion_descriptor, unwrap
+from methods.vae.descriptor import derivative, euler_zxy, generated_poses, motion_descriptor, unwrap
 from methods.vae.garment_model import garment_model
 from methods.vae.network import GarmentVAE
 from methods.vae.projection import project_sequences
@@ -186,6 +186,18 @@ def test_unknown_and_invalid_parameters_are_named():
         vae_params({"latnet": 3})
     with pytest.raises(ValueError, match="regressor.pose must be one of learned, rotations"):
         vae_params({"regressor": {"pose": "quaternions"}})
+    with pytest.raises(ValueError, match="regressor.select must be one of validation, last"):
+        vae_params({"regressor": {"select": "best"}})
+    with pytest.raises(ValueError, match="regressor.window_stride must be >= 1"):
+        vae_params({"regressor": {"window_stride": 0}})
+
+
+def test_generated_poses_cover_each_motion_kind_once_per_sequence():
+    poses = generated_poses(["walk", "dance", "walk"], 2, n_frames=5, transition=3, fps=30.0)
+    assert poses.shape == (2 * 2 * 8, 22, 3) and torch.isfinite(poses).all()
+    assert torch.equal(poses, generated_poses(["dance", "walk"], 2, 5, 3, 30.0))  # fixed seeds, kinds in order
+    assert not torch.equal(poses[:8], poses[8:16])  # two sequences of a kind differ
+    assert generated_poses([], 2, 5, 3, 30.0).shape == (0, 22, 3)
 
 
 def _tiny_scene(body):
@@ -229,7 +241,7 @@ def test_a_tiny_fit_drapes_and_its_state_round_trips(body, tmp_path):
     m = _tiny_model(body, diffused, sdf)
     report = m.fit(data, {"seed": 0, "log_dir": str(tmp_path)})
     assert {h["stage"] for h in report.history} == {"vae", "pose", "regressor"}
-    assert (tmp_path / "vae" / "evaluations.csv").exists() and (tmp_path / "losses.csv").exists()
+    assert all((tmp_path / stage / f).exists() for stage in ("vae", "regressor") for f in ("losses.csv", "evaluations.csv"))
     assert [e["epoch"] for e in m.evaluations][:2] == [0, 1]
     assert m.projection_stats["residual_mm"] < 5.0
     test = make_sequence("kick", 6, seed=9, transition=2)
@@ -258,6 +270,24 @@ def test_a_tiny_fit_drapes_and_its_state_round_trips(body, tmp_path):
         m.vae.scale.fill_(1e-6)
     hit = m.diagnostics(garment, test, m.drape(garment, test))
     assert hit["eps_c_canonical"] == 100 and hit["sampled_prior_pct"] == 100 and hit["sampled_codes_pct"] == 100
+
+
+def test_the_regressor_keeps_the_epoch_of_lowest_validation_error(body):
+    garment, data, diffused, seqs = _tiny_scene(body)
+    cfg = {**TINY, "regressor": {**TINY["regressor"], "schedule": {**TINY["regressor"]["schedule"], "epochs": 20, "lr": 5e-2}}}
+    m = _tiny_model(body, diffused, SphereSDF(c=(5.0, 5.0, 5.0), r=0.1), cfg)
+    m.fit(data, {"seed": 0})
+    T = seqs[0].n_frames
+    codes = 3 + torch.randn(2, T, 4, generator=torch.Generator().manual_seed(0))  # training targets far from ...
+    val_codes = torch.zeros(1, T, 4)  # ... the validation codes: the validation error grows with training
+    for select in ("validation", "last"):
+        m.p["regressor"]["select"] = select
+        res = m._train_regressor(seqs[:2], codes, {"seed": 0}, None, (seqs[2:], val_codes))
+        errors = [e["val_position"] for e in res.evaluations]
+        with torch.no_grad():
+            final = float((m.regressor(m._descriptor(seqs[2])[None])[0][0] - val_codes[0]).abs().mean())
+        assert final == pytest.approx(min(errors) if select == "validation" else errors[-1], rel=1e-5)
+    assert len(errors) == 20 and min(errors) < 0.5 * errors[-1]  # the two choices keep different weights
 
 
 class ShiftVAE(torch.nn.Module):
