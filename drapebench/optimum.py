@@ -111,6 +111,13 @@ def optimise_sequence(loss: WindowLoss, start: torch.Tensor, window: int, solver
     return result
 
 
+def sequence_terms(loss: WindowLoss, drape: torch.Tensor, window: int) -> list[dict[str, float]]:
+    """Per frame t, the terms of ``loss`` (module docstring) on the window of ``drape`` (T, V, 3) m ending at t
+    (frames before the first repeat the first): how a method's own loss scores a whole drape, trained or not."""
+    with torch.no_grad():
+        return [_floats(loss(t, drape[[max(i, 0) for i in range(t - window + 1, t + 1)]])[1], t, "drape") for t in range(len(drape))]
+
+
 def _floats(terms: dict[str, torch.Tensor], t: int, where: str) -> dict[str, float]:
     """The terms as floats; ValueError naming the non-finite ones."""
     out = {k: float(v) for k, v in terms.items()}

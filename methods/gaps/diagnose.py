@@ -1,8 +1,11 @@
-"""Print what GAPS's training loss sees on a batch of training windows: every weighted term, its value and
-its gradient per vertex (N), at the untrained skinning (network output zero) or a trained checkpoint's drape.
+"""Print what GAPS's training loss sees: on a batch of training windows, every weighted term, its value and
+its gradient per vertex (N), at the untrained skinning (network output zero); or, with ``--run``, the terms
+of a trained run's drape beside its untrained skinning's on the run's test sequence (or, with
+``--training-motion``, on the first training sequence of that motion, at the run's body shape).
 
     python -m methods.gaps.diagnose --garment tshirt --body anny_lowres             # train=cpu's GAPS keys
     python -m methods.gaps.diagnose --garment tshirt --budget paper --epoch 100 --windows 16
+    python -m methods.gaps.diagnose --run multirun/<date>/<sweep>/<run> [--training-motion dance]
 """
 
 from __future__ import annotations
@@ -55,6 +58,33 @@ def diagnose(garment: str, body: str, budget: str = "cpu", epoch: int | None = N
     return term_table(lambda y: m._terms(y, out.vertices, normals, at.epoch), x)
 
 
+def run_terms(run_dir, training_motion: str | None = None) -> pd.DataFrame:
+    """GAPS's loss terms (its weights and normalisation, k_ext at the end of the ramp; mean per frame over the
+    frames after the transition) of a gaps run's trained drape and of its untrained skinning, one row each, on
+    the run's test sequence or, with ``training_motion``, on the first ``train_small`` sequence of that motion
+    with the run's body shape. A trained drape whose total is above the untrained one's is worse by GAPS's own
+    objective."""
+    import dataclasses
+
+    from drapebench.optimum import sequence_terms
+    from drapebench.trained_run import load_run
+
+    run = load_run(run_dir)
+    m, seq = run.method, run.seq
+    if training_motion is not None:
+        train = [s for s in H5Sequences(build_dataset("train_small")) if s.motion == training_motion]
+        if not train:
+            raise ValueError(f"train_small has no {training_motion!r} sequence; its motions: {sorted({s.motion for s in H5Sequences(build_dataset('train_small'))})}")
+        seq = dataclasses.replace(train[0], betas=seq.betas, _cache={})
+    drapes = {"trained": m.drape(run.garment, seq).vertices, "untrained": m.untrained_drape(seq)}
+    loss, start = m.window_loss(seq, m.p["train"]["kext_ramp_epochs"]), int(seq.n_transition)
+    rows = []
+    for name, x in drapes.items():
+        terms = pd.DataFrame(sequence_terms(loss, x, m.p["train"]["window"])[start:]).mean()
+        rows.append({"drape": name, "sequence": seq.name, "total": terms.sum(), **terms.to_dict()})
+    return pd.DataFrame(rows)
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0], formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
     ap.add_argument("--garment", default="tshirt")
@@ -63,8 +93,14 @@ def main(argv=None) -> None:
     ap.add_argument("--epoch", type=int, default=None, help="epoch of k_ext (default: the end of the ramp)")
     ap.add_argument("--windows", type=int, default=8, help="training windows in the batch")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--run", help="a gaps run folder: its trained drape's terms beside its untrained skinning's")
+    ap.add_argument("--training-motion", help="with --run: score the first train_small sequence of this motion instead")
     a = ap.parse_args(argv)
     torch.set_num_threads(1)
+    if a.run:
+        print("GAPS loss terms per frame (J per frame as the training normalises them), k_ext at the end of the ramp")
+        print(run_terms(a.run, a.training_motion).to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+        return
     table = diagnose(a.garment, a.body, a.budget, a.epoch, a.windows, a.seed)
     print(f"GAPS loss terms on {a.windows} training windows, {a.garment} on {a.body}, budget {a.budget}, untrained skinning")
     print("value: per the budget's normalisation (the code: J per frame; collision and inertia per window); grad_*: norm of d term / d x per vertex and frame drape, N")

@@ -273,6 +273,12 @@ class GAPS(DrapingMethod):
         delta, h = self.net(self._inputs(betas, seq.poses[None].to(self.body.dtype), vel), h0)
         return self._skinned(delta, betas, seq), h
 
+    def untrained_drape(self, seq) -> torch.Tensor:
+        """(T, V, 3) m: the skinning alone (network output zero, where training starts) on ``seq``; needs the
+        garment's constants (:meth:`_setup` or a :meth:`drape` of the garment)."""
+        with torch.no_grad():
+            return self._skinned(torch.zeros(1, seq.n_frames, 3 * self.template.shape[0], dtype=self.body.dtype), self._sequence_betas(seq), seq)
+
     def _skinned(self, delta: torch.Tensor, betas: torch.Tensor, seq) -> torch.Tensor:
         """The drape (T, V, 3) m of canonical displacements delta (1, T, 3V) m on ``seq`` with shape betas (1, S)."""
         return skin_then_translate(self._canonical(delta, betas)[0], self.weights, seq.transforms(self.body), seq.trans.to(self.body.dtype))

@@ -45,9 +45,7 @@ class GapsOptimum(GAPS):
         t0 = time.perf_counter()
         self._setup(garment)
         t1 = time.perf_counter()
-        with torch.no_grad():
-            zero = torch.zeros(1, seq.n_frames, 3 * garment.n_vertices, dtype=self.body.dtype)
-            start = self._skinned(zero, self._sequence_betas(seq), seq)
+        start = self.untrained_drape(seq)
         t2 = time.perf_counter()
         o = self.o
         res = optimise_sequence(self.window_loss(seq, self.kext_epoch()), start, self.p["train"]["window"], o["solver"],

@@ -14,12 +14,11 @@ puts the error in the regressor.
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 import torch
-from omegaconf import OmegaConf
 
+from drapebench.trained_run import load_run
 from methods.vae.garment_model import pose_garments
 from methods.vae.method import POSE_CHUNK
 
@@ -33,35 +32,19 @@ def _posed(method, X: torch.Tensor, seq) -> torch.Tensor:
 
 def diagnose(run_dir: Path) -> dict[str, float]:
     """The numbers of the module docstring for the vae run in ``run_dir`` (its checkpoint must still be in the cache)."""
-    import methods
-    from drapebench.body import load_body
-    from drapebench.body.motion_file import sequence_from_config
-    from drapebench.experiment import _reference
-    from drapebench.garments import garment_from_config
-    from drapebench.physics import Material
-
-    cfg = OmegaConf.load(run_dir / "config.yaml")
-    ckpt = json.loads((run_dir / "metrics.json").read_text()).get("checkpoint")
-    if not ckpt or not Path(ckpt).exists():
-        raise FileNotFoundError(f"{run_dir}: its checkpoint {ckpt!r} is not in the cache; rerun the run to train it again")
-    body = load_body(cfg.body.name)
-    material = Material.from_config(OmegaConf.to_container(cfg.material, resolve=True))
-    seq = sequence_from_config(OmegaConf.to_container(cfg.motion, resolve=True), body)
-    garment = garment_from_config(OmegaConf.to_container(cfg.garment, resolve=True), body, seq.betas)
-    reference = _reference(cfg, garment, seq, body, material)
+    run = load_run(run_dir)
+    m, seq = run.method, run.seq
+    reference = run.reference()
     if reference is None:
         raise ValueError(f"{run_dir}: the run has no reference drape (reference.solver is null)")
-    m = methods.get(cfg.method.impl)(OmegaConf.to_container(cfg.method.params, resolve=True))
-    m.bind(body, material)
-    m.load_state_dict(torch.load(ckpt, map_location="cpu", weights_only=False)["method"])
     start = int(seq.n_transition)
     error = lambda x: float((x[start:] - reference[start:]).norm(dim=-1).mean() * 1e3)  # noqa: E731
-    X = m._project(garment, [seq], [reference]).X[0]  # an optimisation per frame (cached by content)
+    X = m._project(run.garment, [seq], [reference]).X[0]  # an optimisation per frame (cached by content)
     with torch.no_grad():
         oracle, _ = m.vae.encode(X)
         regressed = m.regressor(m._descriptor(seq)[None])[0][0]
         gap = ((regressed - oracle) / m.vae.code_std).pow(2).mean(-1).sqrt()[start:].mean()
-        return {"regressed": error(m.drape(garment, seq).vertices), "oracle code": error(_posed(m, m.vae.decode(oracle), seq)),
+        return {"regressed": error(m.drape(run.garment, seq).vertices), "oracle code": error(_posed(m, m.vae.decode(oracle), seq)),
                 "canonical": error(_posed(m, X, seq)), "code gap": float(gap)}  # fmt: skip
 
 

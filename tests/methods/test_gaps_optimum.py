@@ -9,7 +9,7 @@ import methods
 from drapebench.body import make_sequence
 from drapebench.data import TrainData
 from drapebench.garments import make_garment
-from drapebench.optimum import minimise, optimise_sequence
+from drapebench.optimum import minimise, optimise_sequence, sequence_terms
 from drapebench.physics import Material
 from drapebench.train.trainer import Step
 
@@ -35,12 +35,6 @@ def _optimum(body, g, cfg=None):
     return m
 
 
-def _start(m, g, seq):
-    """The untrained skinning (T, V, 3): GAPS's drape for a zero network output."""
-    with torch.no_grad():
-        return m._skinned(torch.zeros(1, seq.n_frames, 3 * g.n_vertices, dtype=m.body.dtype), m._sequence_betas(seq), seq)
-
-
 def test_the_loss_at_the_start_is_the_training_loss_of_a_zero_network_output(scene):
     body, g, seq = scene
     gaps = methods.get("gaps")(MEAN_BODY)
@@ -52,7 +46,7 @@ def test_the_loss_at_the_start_is_the_training_loss_of_a_zero_network_output(sce
     trained = gaps._loss_terms(batch, Step(0, epoch, np.random.default_rng(0)))
     m = _optimum(body, g, {**MEAN_BODY, "optimum": {"kext_epoch": epoch}})
     assert m.kext_epoch() == epoch and _optimum(body, g, MEAN_BODY).kext_epoch() == ramp  # default: k_ext's final value
-    total, terms = m.window_loss(seq, epoch)(first + 2, _start(m, g, seq)[first : first + 3])
+    total, terms = m.window_loss(seq, epoch)(first + 2, m.untrained_drape(seq)[first : first + 3])
     assert list(terms) == list(trained) == ["strain", "bending", "gravity", "collision", "inertia", "inext"]
     for k in trained:
         assert torch.allclose(terms[k], trained[k], rtol=1e-4, atol=1e-9), (k, terms[k], trained[k])
@@ -64,11 +58,15 @@ def test_the_loss_at_the_start_is_the_training_loss_of_a_zero_network_output(sce
 def test_the_solver_lowers_the_loss_from_the_start_and_stays_finite(scene, solver, lr):
     body, g, seq = scene
     m = _optimum(body, g)
-    res = optimise_sequence(m.window_loss(seq, m.kext_epoch()), _start(m, g, seq)[:5], 3, solver, 15, lr)
+    res = optimise_sequence(m.window_loss(seq, m.kext_epoch()), m.untrained_drape(seq)[:5], 3, solver, 15, lr)
     start = np.array([sum(t.values()) for t in res.start_terms])
     final = np.array([sum(t.values()) for t in res.final_terms])
     assert torch.isfinite(res.vertices).all() and np.isfinite(final).all()
     assert (final <= start + 1e-6).all() and (final[3:] < 0.8 * start[3:]).all(), (start, final)  # moving frames: much lower
+    loss = m.window_loss(seq, m.kext_epoch())
+    scored = sequence_terms(loss, res.vertices, 3)  # from frame 1 on, the windows the optimum's final terms score
+    assert len(scored) == 5 and all(scored[t] == pytest.approx(res.final_terms[t], rel=1e-5) for t in range(1, 5))
+    assert sequence_terms(loss, m.untrained_drape(seq)[:5], 3)[0] == pytest.approx(res.start_terms[0], rel=1e-5)
 
 
 def test_the_method_drapes_without_training_and_keeps_no_state(scene):
@@ -93,7 +91,7 @@ def test_every_term_shapes_the_optimum(scene):
     body, g, seq = scene
     m = _optimum(body, g, {"collision_eps": 0.02})
     loss, t = m.window_loss(seq, m.kext_epoch()), 5
-    start = _start(m, g, seq)
+    start = m.untrained_drape(seq)
     before = start[t - 2 : t]
 
     def solve(sign: dict):
