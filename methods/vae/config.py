@@ -44,7 +44,7 @@ REGRESSOR_DEFAULTS = dict(
     layers=2,
     window=30,  # frames per training window (the GRU starts from a zero state)
     window_stride=5,  # frames between the starts of consecutive training windows
-    select="validation",  # validation: keep the epoch's weights of lowest code error on the held-out validation sequences (val_sequences) | last
+    select="last",  # last: the last epoch's weights (the paper) | validation: the epoch's whose decoded codes are closest (mm) to the held-out validation sequences' garments (val_sequences)
     velocity=1.0,  # rho_1 of Eq. 18
     acceleration=1.0,  # rho_2
     schedule=dict(epochs=150, batch_size=8, lr=1.0e-3, lr_after=1.0e-4, lr_switch_epoch=120, ema_decay=None,

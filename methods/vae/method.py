@@ -121,12 +121,12 @@ class VAEModel(DrapingMethod):
         history += [{"stage": "vae", **h} for h in res.history]
         self.evaluations = res.evaluations
         with torch.no_grad():  # (N, T, latent): the posterior means
-            codes, val_codes = (torch.stack([self.vae.encode(x)[0] for x in X]) for X in (train_X, val_X))
+            codes = torch.stack([self.vae.encode(x)[0] for x in train_X])
         train_seqs = seqs[:-n_val]
         if self.p["regressor"]["pose"] == "learned":
             res_pose = self._train_pose(train_seqs, train_cfg)
             history += [{"stage": "pose", **h} for h in res_pose.history]
-        res_r = self._train_regressor(train_seqs, codes, train_cfg, log_dir, (seqs[-n_val:], val_codes))
+        res_r = self._train_regressor(train_seqs, codes, train_cfg, log_dir, (seqs[-n_val:], val_X))
         history += [{"stage": "regressor", **h} for h in res_r.history]
         return FitReport(train_s=time.perf_counter() - t0, n_steps=len(history), final_losses=res_r.history[-1] if res_r.history else {},
                          history=history, evaluations=self.evaluations)  # fmt: skip
@@ -243,9 +243,10 @@ class VAEModel(DrapingMethod):
 
     def _train_regressor(self, seqs, codes: torch.Tensor, train_cfg: dict, log_dir, validation=None):
         """Train the GRU regressor (Eq. 18) on windows of the training sequences' descriptors and latent codes
-        (N, T, latent). ``validation`` (sequences, their codes (M, T, latent)) is scored after every epoch (mean
-        L1 code error over whole sequences, ``regressor/evaluations.csv``); with ``regressor.select: validation``
-        the weights of the epoch that scored lowest are kept."""
+        (N, T, latent). ``validation`` (sequences, their canonical reference garments (M, T, V, 3) m) is scored
+        after every epoch: the mean vertex distance (mm) of the decoded regressed codes to those garments
+        (``regressor/evaluations.csv``); with ``regressor.select: validation`` the weights of the epoch that
+        scored lowest are kept, else the last epoch's."""
         r = self.p["regressor"]
         budget = self._budget(train_cfg, r["schedule"])
         desc = torch.stack([self._descriptor(s) for s in seqs])  # (N, T, D)
@@ -268,11 +269,12 @@ class VAEModel(DrapingMethod):
             val_desc = [self._descriptor(s)[None] for s in validation[0]]
 
             def evaluate():
-                error = float(torch.stack([(self.regressor(d)[0][0] - c).abs().mean() for d, c in zip(val_desc, validation[1])]).mean())
+                decoded = [self.vae.decode(self.regressor(d)[0][0]) for d in val_desc]
+                error = 1e3 * float(torch.stack([(x - X).norm(dim=-1).mean() for x, X in zip(decoded, validation[1])]).mean())
                 if error < best["error"]:
                     best.update(error=error, state=copy.deepcopy(self.regressor.state_dict()), epoch=len(best.get("errors", [])))
                 best.setdefault("errors", []).append(error)
-                return {"val_position": error}
+                return {"val_error_mm": error}
 
         key = content_hash(r, budget, desc, codes, None if validation is None else validation[1], "regressor")
         objective = Objective("vae_regressor", [{"params": list(self.regressor.parameters()), "lr_factor": 1.0}], len(starts),
@@ -280,7 +282,7 @@ class VAEModel(DrapingMethod):
         res = train(objective, budget, log_dir=None if log_dir is None else f"{log_dir}/regressor")
         if r["select"] == "validation" and best["state"] is not None:
             self.regressor.load_state_dict(best["state"])
-            log.info("vae regressor: kept epoch %d of %d (validation code error %.4g; last epoch %.4g)", best["epoch"] + 1,
+            log.info("vae regressor: kept epoch %d of %d (validation garments %.2f mm from the decoded codes; last epoch %.2f mm)", best["epoch"] + 1,
                      len(best["errors"]), best["error"], best["errors"][-1])  # fmt: skip
         return res
 

@@ -278,14 +278,16 @@ def test_the_regressor_keeps_the_epoch_of_lowest_validation_error(body):
     m = _tiny_model(body, diffused, SphereSDF(c=(5.0, 5.0, 5.0), r=0.1), cfg)
     m.fit(data, {"seed": 0})
     T = seqs[0].n_frames
-    codes = 3 + torch.randn(2, T, 4, generator=torch.Generator().manual_seed(0))  # training targets far from ...
-    val_codes = torch.zeros(1, T, 4)  # ... the validation codes: the validation error grows with training
+    codes = 3 + torch.randn(2, T, 4, generator=torch.Generator().manual_seed(0))  # training targets far from the code 0 ...
+    with torch.no_grad():  # ... and validation garments decoded at the code 0: the validation error grows with training
+        val_garments = m.vae.decode(torch.zeros(T, 4))[None]
     for select in ("validation", "last"):
         m.p["regressor"]["select"] = select
-        res = m._train_regressor(seqs[:2], codes, {"seed": 0}, None, (seqs[2:], val_codes))
-        errors = [e["val_position"] for e in res.evaluations]
+        res = m._train_regressor(seqs[:2], codes, {"seed": 0}, None, (seqs[2:], val_garments))
+        errors = [e["val_error_mm"] for e in res.evaluations]
         with torch.no_grad():
-            final = float((m.regressor(m._descriptor(seqs[2])[None])[0][0] - val_codes[0]).abs().mean())
+            decoded = m.vae.decode(m.regressor(m._descriptor(seqs[2])[None])[0][0])
+        final = 1e3 * float((decoded - val_garments[0]).norm(dim=-1).mean())
         assert final == pytest.approx(min(errors) if select == "validation" else errors[-1], rel=1e-5)
     assert len(errors) == 20 and min(errors) < 0.5 * errors[-1]  # the two choices keep different weights
 
