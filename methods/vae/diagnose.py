@@ -9,6 +9,10 @@ could ask of this decoder); ``canonical``, the reference's canonical projection 
 space itself costs). ``code gap`` is the distance between the regressed and the oracle codes in units of the
 training codes' std per dimension (RMS over dimensions, mean over frames): a large gap with a small oracle error
 puts the error in the regressor.
+
+With ``--retrain '<json of regressor keys>' --seeds 100,101``: the run's pose descriptor and regressor trained
+again (its VAE and data kept) with those ``method.params.regressor`` keys and each training seed, and the
+regressed drape's distance printed per seed (the measurements of methods/vae/README.md, "Regressor training").
 """
 
 from __future__ import annotations
@@ -48,10 +52,47 @@ def diagnose(run_dir: Path) -> dict[str, float]:
                 "canonical": error(_posed(m, X, seq)), "code gap": float(gap)}  # fmt: skip
 
 
+def retrained_error(run_dir: Path, regressor: dict, seed: int) -> float:
+    """The mean vertex distance (mm, frames after the transition) of the vae run's drape to its reference after
+    training its pose descriptor and regressor again with ``regressor`` keys over the run's and training seed
+    ``seed`` (the VAE, its training data and codes are the run's)."""
+    from drapebench.experiment import _reference_train_data
+    from omegaconf import OmegaConf
+
+    run = load_run(run_dir)
+    m, seq, garment = run.method, run.seq, run.garment
+    m.p["regressor"] = {**m.p["regressor"], **regressor}
+    data = _reference_train_data(run.cfg, garment, run.body, run.material, seq)
+    seqs = [s for s in data.train_sequences if data.reference(garment, s) is not None]
+    X = m._project(garment, seqs, [data.reference(garment, s) for s in seqs]).X
+    n_val = int(m.p["val_sequences"])
+    with torch.no_grad():
+        codes = torch.stack([m.vae.encode(x)[0] for x in X[:-n_val]])
+    train_cfg = {k: v for k, v in OmegaConf.to_container(run.cfg.train, resolve=True).items() if k not in ("dataset", "log_dir")}
+    train_cfg["seed"] = int(seed)
+    if m.p["regressor"]["pose"] == "learned":
+        m._train_pose(seqs[:-n_val], train_cfg)
+    m._train_regressor(seqs[:-n_val], codes, train_cfg, None, (seqs[-n_val:], X[-n_val:]))
+    reference, start = run.reference(), int(seq.n_transition)
+    return float((m.drape(garment, seq).vertices[start:] - reference[start:]).norm(dim=-1).mean() * 1e3)
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("runs", nargs="+", type=Path, help="run directories of vae runs (with config.yaml and metrics.json)")
+    parser.add_argument("--retrain", help="JSON of regressor keys: train the pose descriptor and regressor again with them")
+    parser.add_argument("--seeds", default="0", help="with --retrain: comma-separated training seeds")
     args = parser.parse_args(argv)
+    if args.retrain:
+        import json
+
+        keys = json.loads(args.retrain)
+        torch.set_num_threads(1)  # the measurements' setting: the regressor's training is chaotic in the float order
+        print(f"run | seed | regressed (mm), regressor keys {keys}")
+        for run in args.runs:
+            for seed in map(int, args.seeds.split(",")):
+                print(f"{run.name} | {seed} | {retrained_error(run, keys, seed):.2f}", flush=True)
+        return
     print("run | regressed (mm) | oracle code (mm) | canonical (mm) | code gap (std)")
     for run in args.runs:
         d = diagnose(run)
