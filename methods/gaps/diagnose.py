@@ -72,9 +72,10 @@ def run_terms(run_dir, training_motion: str | None = None) -> pd.DataFrame:
     run = load_run(run_dir)
     m, seq = run.method, run.seq
     if training_motion is not None:
-        train = [s for s in H5Sequences(build_dataset("train_small")) if s.motion == training_motion]
+        dataset = list(H5Sequences(build_dataset("train_small")))
+        train = [s for s in dataset if s.motion == training_motion]
         if not train:
-            raise ValueError(f"train_small has no {training_motion!r} sequence; its motions: {sorted({s.motion for s in H5Sequences(build_dataset('train_small'))})}")
+            raise ValueError(f"train_small has no {training_motion!r} sequence; its motions: {sorted({s.motion for s in dataset})}")
         seq = dataclasses.replace(train[0], betas=seq.betas, _cache={})
     drapes = {"trained": m.drape(run.garment, seq).vertices, "untrained": m.untrained_drape(seq)}
     loss, start = m.window_loss(seq, m.p["train"]["kext_ramp_epochs"]), int(seq.n_transition)

@@ -74,9 +74,9 @@ def vae_params(cfg: Mapping[str, Any] | None) -> dict:
         raise ValueError(f"vae parameter vae.sample_scale must be prior, codes or a positive number, not {scale!r}")
     if not 0 <= float(p["vae"]["kl_warmup"]) < 1:
         raise ValueError(f"vae parameter vae.kl_warmup must be a fraction of the steps in [0, 1), got {p['vae']['kl_warmup']}")
-    for key in ("pose_sequences", "window_stride"):
-        if int(p["regressor"][key]) < (1 if key == "window_stride" else 0):
-            raise ValueError(f"vae parameter regressor.{key} must be >= {1 if key == 'window_stride' else 0}, got {p['regressor'][key]}")
+    for key, least in (("pose_sequences", 0), ("window_stride", 1)):
+        if int(p["regressor"][key]) < least:
+            raise ValueError(f"vae parameter regressor.{key} must be >= {least}, got {p['regressor'][key]}")
     if int(p["regressor"]["betas"]) < 0:
         raise ValueError(f"vae parameter regressor.betas must be >= 0 (leading shape components), got {p['regressor']['betas']}")
     if int(p["vae"]["latent"]) < 1:

@@ -54,25 +54,18 @@ def diagnose(run_dir: Path) -> dict[str, float]:
 
 def retrained_error(run_dir: Path, regressor: dict, seed: int) -> float:
     """The mean vertex distance (mm, frames after the transition) of the vae run's drape to its reference after
-    training its pose descriptor and regressor again with ``regressor`` keys over the run's and training seed
-    ``seed`` (the VAE, its training data and codes are the run's)."""
-    from drapebench.experiment import _reference_train_data
+    its pose descriptor and regressor are trained again with the ``regressor`` keys and training seed ``seed``
+    (the run's VAE and training data kept)."""
     from omegaconf import OmegaConf
+
+    from drapebench.experiment import _reference_train_data
 
     run = load_run(run_dir)
     m, seq, garment = run.method, run.seq, run.garment
     m.p["regressor"] = {**m.p["regressor"], **regressor}
-    data = _reference_train_data(run.cfg, garment, run.body, run.material, seq)
-    seqs = [s for s in data.train_sequences if data.reference(garment, s) is not None]
-    X = m._project(garment, seqs, [data.reference(garment, s) for s in seqs]).X
-    n_val = int(m.p["val_sequences"])
-    with torch.no_grad():
-        codes = torch.stack([m.vae.encode(x)[0] for x in X[:-n_val]])
+    seqs, X = m.training_garments(garment, _reference_train_data(run.cfg, garment, run.body, run.material, seq))
     train_cfg = {k: v for k, v in OmegaConf.to_container(run.cfg.train, resolve=True).items() if k not in ("dataset", "log_dir")}
-    train_cfg["seed"] = int(seed)
-    if m.p["regressor"]["pose"] == "learned":
-        m._train_pose(seqs[:-n_val], train_cfg)
-    m._train_regressor(seqs[:-n_val], codes, train_cfg, None, (seqs[-n_val:], X[-n_val:]))
+    m.fit_regressor(seqs, X, {**train_cfg, "seed": int(seed)})
     reference, start = run.reference(), int(seq.n_transition)
     return float((m.drape(garment, seq).vertices[start:] - reference[start:]).norm(dim=-1).mean() * 1e3)
 

@@ -109,27 +109,37 @@ class VAEModel(DrapingMethod):
         self._body_fields()
         self.topology = garment.topology
         self.template = self._canonical_template(garment)
+        seqs, X = self.training_garments(garment, data)
+        n_val = int(self.p["val_sequences"])
+        res = self._train_vae(X[:-n_val].flatten(0, 1), X[-n_val:].flatten(0, 1), train_cfg, log_dir)
+        self.evaluations = res.evaluations
+        history = [{"stage": "vae", **h} for h in res.history] + self.fit_regressor(seqs, X, train_cfg, log_dir)
+        final = {k: v for k, v in history[-1].items() if k != "stage"} if history and history[-1]["stage"] == "regressor" else {}
+        return FitReport(train_s=time.perf_counter() - t0, n_steps=len(history), final_losses=final, history=history,
+                         evaluations=self.evaluations)  # fmt: skip
+
+    def training_garments(self, garment, data) -> tuple[list, torch.Tensor]:
+        """The training sequences of ``data`` that have a reference drape of ``garment`` and their canonical
+        projections X (N, T, V, 3) m (cached by content); the last ``val_sequences`` are the validation set.
+        Raises ValueError with fewer than 2."""
         seqs = [s for s in data.train_sequences if data.reference(garment, s) is not None]
         if len(seqs) < 2:
             raise ValueError(f"vae: {len(seqs)} reference drapes of {garment.name}; it needs at least 2 (one for validation): "
                              "build more with a larger data preset (data=cpu, data=paper)")  # fmt: skip
-        proj = self._project(garment, seqs, [data.reference(garment, s) for s in seqs])
+        return seqs, self._project(garment, seqs, [data.reference(garment, s) for s in seqs]).X
+
+    def fit_regressor(self, seqs, X: torch.Tensor, train_cfg: dict, log_dir=None) -> list[dict]:
+        """Train the pose descriptor (if learned) and the regressor on the trained VAE's posterior means of the
+        canonical garments X (N, T, V, 3) m of ``seqs``, the last ``val_sequences`` held out for validation.
+        Returns the training records, each with its ``stage`` (pose, regressor)."""
         n_val = int(self.p["val_sequences"])
-        train_X, val_X = proj.X[:-n_val], proj.X[-n_val:]
+        with torch.no_grad():  # (N - n_val, T, latent): the posterior means
+            codes = torch.stack([self.vae.encode(x)[0] for x in X[:-n_val]])
         history = []
-        res = self._train_vae(train_X.flatten(0, 1), val_X.flatten(0, 1), train_cfg, log_dir)
-        history += [{"stage": "vae", **h} for h in res.history]
-        self.evaluations = res.evaluations
-        with torch.no_grad():  # (N, T, latent): the posterior means
-            codes = torch.stack([self.vae.encode(x)[0] for x in train_X])
-        train_seqs = seqs[:-n_val]
         if self.p["regressor"]["pose"] == "learned":
-            res_pose = self._train_pose(train_seqs, train_cfg)
-            history += [{"stage": "pose", **h} for h in res_pose.history]
-        res_r = self._train_regressor(train_seqs, codes, train_cfg, log_dir, (seqs[-n_val:], val_X))
-        history += [{"stage": "regressor", **h} for h in res_r.history]
-        return FitReport(train_s=time.perf_counter() - t0, n_steps=len(history), final_losses=res_r.history[-1] if res_r.history else {},
-                         history=history, evaluations=self.evaluations)  # fmt: skip
+            history += [{"stage": "pose", **h} for h in self._train_pose(seqs[:-n_val], train_cfg).history]
+        res = self._train_regressor(seqs[:-n_val], codes, train_cfg, log_dir, (seqs[-n_val:], X[-n_val:]))
+        return history + [{"stage": "regressor", **h} for h in res.history]
 
     def _project(self, garment, seqs, drapes) -> Projection:
         """Canonical projections of the reference drapes (cached by content), sequences of one length at a time."""
