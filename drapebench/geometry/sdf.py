@@ -32,13 +32,16 @@ is a signed distance whose gradient w.r.t. ``x`` is the exact one (away from the
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
 from scipy.spatial import cKDTree
 
-from drapebench.geometry import body_bvh
 from drapebench.geometry.proximity import NearestVertex, _as_batch, nearest_body_vertex, nearest_from_indices
+
+if TYPE_CHECKING:
+    from drapebench.geometry import body_bvh
 
 
 @dataclass
@@ -53,6 +56,13 @@ class SurfacePoint:
     face: torch.Tensor
     normal: torch.Tensor
 
+
+def _body_bvh():
+    """:mod:`drapebench.geometry.body_bvh`, imported on first use: importing it loads and initialises warp
+    (about 0.3 s), which a caller that never queries a posed body (the VAE's inference, for one) skips."""
+    from drapebench.geometry import body_bvh
+
+    return body_bvh
 
 
 # --- exact point-triangle distance ----------------------------------------------------------------
@@ -175,8 +185,8 @@ def inside_body(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: t
     fast winding number, CPU float64 (module docstring)."""
     points, body_vertices = _as_batch(points, body_vertices)
     faces = torch.as_tensor(body_faces).long()
-    if not exact and body_bvh.is_closed(faces):
-        return (body_bvh.query(points, body_vertices, faces).winding > 0).to(points.device)
+    if not exact and _body_bvh().is_closed(faces):
+        return (_body_bvh().query(points, body_vertices, faces).winding > 0).to(points.device)
     import igl
 
     F = faces.detach().cpu().numpy().astype(np.int64)
@@ -235,9 +245,9 @@ def closest_body_point(points: torch.Tensor, body_vertices: torch.Tensor, body_f
     points, body_vertices = _as_batch(points, body_vertices)
     faces = _checked_faces(body_faces, body_vertices)
     searched = _searched_faces(outer_faces, faces)
-    if exact or not body_bvh.is_closed(faces):
+    if exact or not _body_bvh().is_closed(faces):
         return _closest_exact(points, body_vertices, faces, searched)
-    return _surface_point(points, body_vertices, faces, body_bvh.query(points, body_vertices, faces, outer_faces=outer_faces))
+    return _surface_point(points, body_vertices, faces, _body_bvh().query(points, body_vertices, faces, outer_faces=outer_faces))
 
 
 def body_proximity(points: torch.Tensor, body_vertices: torch.Tensor, body_normals: torch.Tensor, body_faces: torch.Tensor,
@@ -253,10 +263,10 @@ def body_proximity(points: torch.Tensor, body_vertices: torch.Tensor, body_norma
     points, body_vertices, body_normals = _as_batch(points, body_vertices, body_normals)
     faces = _checked_faces(body_faces, body_vertices)
     searched = _searched_faces(outer_faces, faces)
-    if exact or not body_bvh.is_closed(faces):
+    if exact or not _body_bvh().is_closed(faces):
         candidates = None if outer_faces is None else torch.unique(faces[searched])
         return _closest_exact(points, body_vertices, faces, searched), nearest_body_vertex(points, body_vertices, body_normals, candidates)
-    found = body_bvh.query(points, body_vertices, faces, nearest_vertex=True, outer_faces=outer_faces)
+    found = _body_bvh().query(points, body_vertices, faces, nearest_vertex=True, outer_faces=outer_faces)
     return _surface_point(points, body_vertices, faces, found), nearest_from_indices(points, body_vertices, body_normals, found.vertex.to(points.device))
 
 
