@@ -57,12 +57,13 @@ def motion_descriptor(seq, betas: torch.Tensor, pose_code=None, root: str = "wor
     axis-angles, P = 3 (J-1)), H the root translation (m; ``root`` "world": its 3 components, R = 3, the
     paper's text; "vertical": only the vertical (z) one, R = 1, heading-invariant, the public model), K the
     root rotation's Euler angles (rad) and beta the body shape ``betas`` (S,) (a prefix of
-    ``BodyModel.full_betas(seq.betas)``; S = 0 leaves it out)."""
+    ``BodyModel.full_betas(seq.betas)``; S = 0 leaves it out). Computed on ``betas``'s device."""
     if root not in ROOT_CHOICES:
         raise ValueError(f"root must be one of {', '.join(ROOT_CHOICES)}, not {root!r}")
-    poses = seq.poses.float()
+    poses = seq.poses.to(betas.device).float()
+    trans = seq.trans.to(betas.device).float()
     phi = poses[:, 1:].flatten(1) if pose_code is None else pose_code(pose_rotations(poses))
-    H = seq.trans.float() if root == "world" else seq.trans.float()[:, 2:3]
+    H = trans if root == "world" else trans[:, 2:3]
     K = unwrap(euler_zxy(axis_angle_to_matrix(poses[:, 0])))
     fps = float(seq.fps)
     parts = [phi, derivative(phi, fps), derivative(derivative(phi, fps), fps)]

@@ -389,3 +389,8 @@ def test_the_vertical_root_descriptor_ignores_the_heading():
     same = lambda s, root: motion_descriptor(s, s.betas, root=root)  # noqa: E731
     torch.testing.assert_close(same(turned, "vertical"), same(seq, "vertical"), atol=2e-3, rtol=1e-3)
     assert not torch.allclose(same(turned, "world"), same(seq, "world"), atol=1e-2)
+
+
+def test_the_descriptor_is_computed_on_the_device_of_the_body_shape():
+    seq = make_sequence("walk", 10, seed=1)  # a sequence's poses stay on the CPU; the body (here "meta") may not
+    assert motion_descriptor(seq, seq.betas.to("meta")).device.type == "meta"
