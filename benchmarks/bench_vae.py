@@ -34,7 +34,7 @@ def untrained_state(model, garment, seq) -> dict:
     p, body = model.p, model.body
     pose = PoseDescriptor(body.n_joints, int(p["regressor"]["pose_code"]))
     r = p["regressor"]
-    n_in = motion_descriptor(seq, body.full_betas(seq.betas)[: int(r["betas"])], pose.code, r["root"]).shape[-1]
+    n_in = motion_descriptor(seq, body.full_betas(seq.betas)[: int(r["betas"])].cpu(), pose.code, r["root"]).shape[-1]
     vae = GarmentVAE(garment.n_vertices, int(p["vae"]["latent"]), p["vae"]["hidden"])
     regressor = Regressor(n_in, vae.latent, int(p["regressor"]["hidden"]), int(p["regressor"]["layers"]))
     return {"vae": vae.state_dict(), "regressor": regressor.state_dict(), "pose": pose.state_dict(),

@@ -62,16 +62,16 @@ class VAEModel(DrapingMethod):
 
         return {**self.p, "diffused": {**DIFFUSED_DEFAULTS, **self.p["diffused"]}, "sdf": {**BODY_SDF_DEFAULTS, **self.p["sdf"]}}
     def _body_fields(self) -> None:
-        """The diffused body model and the canonical body's learned SDF (fitted once per body, cached); fields
-        already set are kept."""
+        """The diffused body model and the canonical body's learned SDF (fitted once per body, cached), on the
+        body's device; fields already set are kept."""
         if self.diffused is None:
             from drapebench.body import fit_diffused_body
 
-            self.diffused = fit_diffused_body(self.body, self.p["diffused"] or None)
+            self.diffused = fit_diffused_body(self.body, self.p["diffused"] or None).to(self.body.device)
         if self.sdf is None:
             from drapebench.body import fit_body_sdf
 
-            self.sdf = fit_body_sdf(self.body, self.p["sdf"] or None)
+            self.sdf = fit_body_sdf(self.body, self.p["sdf"] or None).to(self.body.device)
 
     def _canonical_template(self, garment) -> torch.Tensor:
         """The garment template (V, 3) m moved to the mean body shape (the canonical space's)."""
@@ -84,7 +84,7 @@ class VAEModel(DrapingMethod):
 
     def _new_vae(self, n_vertices: int) -> GarmentVAE:
         v = self.p["vae"]
-        return GarmentVAE(n_vertices, int(v["latent"]), v["hidden"], v["logvar_init"]).to(self.body.dtype)
+        return GarmentVAE(n_vertices, int(v["latent"]), v["hidden"], v["logvar_init"]).to(self.body.device, self.body.dtype)
 
     def _pose_code(self):
         return None if self.pose is None else self.pose.code
@@ -234,7 +234,7 @@ class VAEModel(DrapingMethod):
         r = self.p["regressor"]
         budget = self._budget(train_cfg, POSE_SCHEDULE, r["pose_steps"])
         torch.manual_seed(budget.seed)
-        self.pose = PoseDescriptor(self.body.n_joints, int(r["pose_code"])).to(self.body.dtype)
+        self.pose = PoseDescriptor(self.body.n_joints, int(r["pose_code"])).to(self.body.device, self.body.dtype)
         first = seqs[0]
         generated = generated_poses([s.motion for s in seqs], int(r["pose_sequences"]), len(first.poses) - int(first.n_transition),
                                     int(first.n_transition), float(first.fps))  # fmt: skip
@@ -262,7 +262,7 @@ class VAEModel(DrapingMethod):
         desc = torch.stack([self._descriptor(s) for s in seqs])  # (N, T, D)
         self._n_in = desc.shape[-1]
         torch.manual_seed(budget.seed)
-        self.regressor = Regressor(self._n_in, self.vae.latent, int(r["hidden"]), int(r["layers"])).to(self.body.dtype)
+        self.regressor = Regressor(self._n_in, self.vae.latent, int(r["hidden"]), int(r["layers"])).to(self.body.device, self.body.dtype)
         with torch.no_grad():
             flat = desc.flatten(0, 1)
             self.regressor.input_mean.copy_(flat.mean(0))
@@ -349,15 +349,15 @@ class VAEModel(DrapingMethod):
     def load_state_dict(self, state) -> None:
         self._require_bound()
         self._body_fields()
-        self.template = state["template"].to(self.body.dtype)
+        self.template = state["template"].to(self.body.device, self.body.dtype)
         self.vae = self._new_vae(int(state["n_vertices"]))
         self.vae.load_state_dict(state["vae"])
         r = self.p["regressor"]
         self.pose = None
         if state["pose"] is not None:
-            self.pose = PoseDescriptor(self.body.n_joints, int(r["pose_code"])).to(self.body.dtype)
+            self.pose = PoseDescriptor(self.body.n_joints, int(r["pose_code"])).to(self.body.device, self.body.dtype)
             self.pose.load_state_dict(state["pose"])
         self._n_in = int(state["n_in"])
-        self.regressor = Regressor(self._n_in, self.vae.latent, int(r["hidden"]), int(r["layers"])).to(self.body.dtype)
+        self.regressor = Regressor(self._n_in, self.vae.latent, int(r["hidden"]), int(r["layers"])).to(self.body.device, self.body.dtype)
         self.regressor.load_state_dict(state["regressor"])
         self.evaluations, self.projection_stats = list(state["evaluations"]), dict(state["projection_stats"])
