@@ -70,6 +70,13 @@ def _method_class(cfg: DictConfig):
     return methods.get(impl)
 
 
+def check_device(method_cls, name: str, device: torch.device) -> None:
+    """Refuse a run on a device type the method does not support (``DrapingMethod.devices``), naming the fix."""
+    if device.type not in method_cls.devices:
+        raise ValueError(f"device={device.type}: method {name} trains and drapes on {' or '.join(method_cls.devices)} only "
+                         f"in this version; run it with device=cpu")
+
+
 CHECKPOINTS = Cache("checkpoints", 1)
 EVALUATIONS = Cache("evaluations", 1)
 
@@ -299,6 +306,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     t = time.perf_counter()
     dtype = getattr(torch, getattr(cfg.dtype, "name", cfg.dtype))  # a Precision member once validated by the schema
     body = load_body(cfg.body.name, dtype=dtype, device=cfg.device)
+    check_device(method_cls, cfg.method.name, body.device)
     material = Material.from_config(OmegaConf.to_container(cfg.material, resolve=True))
     m = cfg.motion
     seq = sequence_from_config(OmegaConf.to_container(m, resolve=True), body)

@@ -54,6 +54,7 @@ class DrapingMethod(ABC):
     name: str = "base"
     generic: bool = False  # one model for any garment (True) vs one model per garment
     needs_reference: bool = False  # trains on physics-based reference drapes
+    devices: tuple[str, ...] = ("cpu", "cuda")  # torch device types a run (fit and drape) may use
 
     def __init__(self, cfg: Mapping[str, Any] | None = None) -> None:
         self.cfg = dict(cfg or {})

@@ -370,3 +370,14 @@ def test_two_processes_building_one_cache_entry_at_once_both_get_it_and_leave_on
     assert [out.get(timeout=5), out.get(timeout=5)] == [expected, expected]
     assert sorted(f.name for f in path.parent.iterdir()) == [path.name, path.name + ".sha256"]  # no temporary file left
     assert Cache("race", 1).load(path, np.load).sum() == expected  # sealed and intact
+
+
+def test_a_method_refuses_a_device_it_does_not_support():
+    import methods
+    from drapebench.experiment import check_device
+
+    for name in ("gaps", "gensim", "vae"):
+        with pytest.raises(ValueError, match=rf"device=cuda: method {name} trains and drapes on cpu only .* device=cpu"):
+            check_device(methods.get(name), name, torch.device("cuda"))
+        check_device(methods.get(name), name, torch.device("cpu"))
+    check_device(methods.get("lbs"), "lbs", torch.device("cuda"))

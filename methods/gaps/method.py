@@ -36,6 +36,7 @@ class GAPS(DrapingMethod):
     """GAPS and its ablations (see the module docstring for every reading of the paper)."""
 
     name = "gaps"
+    devices = ("cpu",)  # its network, skinning weights and training inputs are built on the CPU
     generic = False
     needs_reference = False
 

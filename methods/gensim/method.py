@@ -74,6 +74,7 @@ class GenSim(DrapingMethod):
     """Motion-aware ARAP + PEN (see the module docstring)."""
 
     name = "gensim"
+    devices = ("cpu",)  # PEN, the garment graphs and the ARAP stage (libigl) are built on the CPU
     generic = True
     needs_reference = False
 

@@ -43,6 +43,7 @@ class VAEModel(DrapingMethod):
     """The VAE collision model and its ablations (see the module docstring)."""
 
     name = "vae"
+    devices = ("cpu",)  # training draws its samples on the CPU; inference alone runs on cuda (benchmarks/bench_vae.py --device cuda)
     generic = False
     needs_reference = True
 
