@@ -99,3 +99,11 @@ def dihedral_angles(x: torch.Tensor, hinges, hinge_opposite: torch.Tensor | None
     degenerate = (sin.abs() < eps**2) & (cos.abs() < eps**2)
     cos = torch.where(degenerate, torch.full_like(cos, eps), cos)
     return torch.atan2(sin, cos)
+
+
+def ring_mean(x: torch.Tensor, topology) -> torch.Tensor:
+    """(B, V, C): the mean of each vertex's 1-ring neighbours' values x (B, V, C) (a vertex without
+    neighbours gets 0) over a :class:`~drapebench.geometry.topology.Topology`'s rings."""
+    owner, idx = topology.ring_owner, topology.ring_idx
+    total = torch.zeros_like(x).index_add_(1, owner, x[:, idx])
+    return total / topology.ring_sizes.clamp_min(1).to(x.dtype)[None, :, None]

@@ -1,7 +1,9 @@
 """Print what GAPS's training loss sees: on a batch of training windows, every weighted term, its value and
 its gradient per vertex (N), at the untrained skinning (network output zero); or, with ``--run``, the terms
-of a trained run's drape beside its untrained skinning's on the run's test sequence (or, with
-``--training-motion``, on the first training sequence of that motion, at the run's body shape).
+of a trained run's drape beside its untrained skinning's and those of the parts of its network's output (the
+static part, the part that varies with the motion, the output smoothed over each 1-ring), with the output's
+size and roughness, on the run's test sequence (or, with ``--training-motion``, on the first training
+sequence of that motion, at the run's body shape).
 
     python -m methods.gaps.diagnose --garment tshirt --body anny_lowres             # train=cpu's GAPS keys
     python -m methods.gaps.diagnose --garment tshirt --budget paper --epoch 100 --windows 16
@@ -24,6 +26,7 @@ from drapebench.body.skinning import skin_then_translate
 from drapebench.cache import PROJECT_ROOT
 from drapebench.data import H5Sequences, TrainData
 from drapebench.diagnose import term_table
+from drapebench.geometry.ops import ring_mean
 from drapebench.garments import make_garment
 from drapebench.physics import Material
 from drapebench.train.trainer import Step
@@ -58,11 +61,36 @@ def diagnose(garment: str, body: str, budget: str = "cpu", epoch: int | None = N
     return term_table(lambda y: m._terms(y, out.vertices, normals, at.epoch), x)
 
 
-def run_terms(run_dir, training_motion: str | None = None) -> pd.DataFrame:
+SMOOTHING_ROUNDS = 3  # rounds of averaging the output with its 1-ring in the "smoothed" drape
+
+
+def output_parts(m, seq) -> tuple[dict, dict]:
+    """The trained network's canonical displacements D (T, V, 3) on ``seq`` taken apart, over the frames after
+    the transition: statistics in mm (mean |D|; |S| of its time mean S, the static part; |D - S|, the part
+    that varies with the motion; roughness |D - ring mean of D|, what a vertex does apart from its 1-ring) and
+    drapes (T, V, 3) m of the static part alone, the varying part alone and D averaged with its 1-ring
+    ``SMOOTHING_ROUNDS`` times (each round x <- (x + ring mean of x) / 2)."""
+    T, start = seq.n_frames, int(seq.n_transition)
+    delta = m.displacements(seq)[0].reshape(T, -1, 3)
+    static = delta[start:].mean(0, keepdim=True).expand_as(delta)
+    smooth = delta
+    for _ in range(SMOOTHING_ROUNDS):
+        smooth = 0.5 * (smooth + ring_mean(smooth, m.topology))
+    mm = lambda d: 1e3 * float(d[start:].norm(dim=-1).mean())  # noqa: E731
+    stats = {"mean |D| (mm)": mm(delta), "static |S| (mm)": mm(static), "varying |D - S| (mm)": mm(delta - static),
+             "roughness (mm)": mm(delta - ring_mean(delta, m.topology))}  # fmt: skip
+    betas = m._sequence_betas(seq)
+    parts = {"static part": static, "varying part": delta - static, f"smoothed x{SMOOTHING_ROUNDS}": smooth}
+    with torch.no_grad():
+        return stats, {name: m.skinned(d.reshape(1, T, -1), betas, seq) for name, d in parts.items()}
+
+
+def run_terms(run_dir, training_motion: str | None = None) -> tuple[pd.DataFrame, dict]:
     """GAPS's loss terms (its weights and normalisation, k_ext at the end of the ramp; mean per frame over the
-    frames after the transition) of a gaps run's trained drape and of its untrained skinning, one row each, on
-    the run's test sequence or, with ``training_motion``, on the first ``train_small`` sequence of that motion
-    with the run's body shape. A trained drape whose total is above the untrained one's is worse by GAPS's own
+    frames after the transition) of a gaps run's trained drape, of its untrained skinning and of the parts of
+    the network's output (:func:`output_parts`), one row each, on the run's test sequence or, with
+    ``training_motion``, on the first ``train_small`` sequence of that motion with the run's body shape; and
+    the output's statistics. A trained drape whose total is above the untrained one's is worse by GAPS's own
     objective."""
     import dataclasses
 
@@ -78,12 +106,14 @@ def run_terms(run_dir, training_motion: str | None = None) -> pd.DataFrame:
             raise ValueError(f"train_small has no {training_motion!r} sequence; its motions: {sorted({s.motion for s in dataset})}")
         seq = dataclasses.replace(train[0], betas=seq.betas, _cache={})
     drapes = {"trained": m.drape(run.garment, seq).vertices, "untrained": m.untrained_drape(seq)}
+    stats, parts = output_parts(m, seq)
+    drapes.update(parts)
     loss, start = m.window_loss(seq, m.p["train"]["kext_ramp_epochs"]), int(seq.n_transition)
     rows = []
     for name, x in drapes.items():
         terms = pd.DataFrame(sequence_terms(loss, x, m.p["train"]["window"])[start:]).mean()
         rows.append({"drape": name, "sequence": seq.name, "total": terms.sum(), **terms.to_dict()})
-    return pd.DataFrame(rows)
+    return pd.DataFrame(rows), stats
 
 
 def main(argv=None) -> None:
@@ -99,8 +129,10 @@ def main(argv=None) -> None:
     a = ap.parse_args(argv)
     torch.set_num_threads(1)
     if a.run:
+        table, stats = run_terms(a.run, a.training_motion)
         print("GAPS loss terms per frame (J per frame as the training normalises them), k_ext at the end of the ramp")
-        print(run_terms(a.run, a.training_motion).to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+        print(table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+        print("The network's canonical displacements D: " + ", ".join(f"{k} {v:.2f}" for k, v in stats.items()))
         return
     table = diagnose(a.garment, a.body, a.budget, a.epoch, a.windows, a.seed)
     print(f"GAPS loss terms on {a.windows} training windows, {a.garment} on {a.body}, budget {a.budget}, untrained skinning")

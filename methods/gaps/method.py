@@ -227,10 +227,9 @@ class GAPS(DrapingMethod):
         t0 = time.perf_counter()
         transforms = seq.transforms(self.body)
         betas = self._sequence_betas(seq)
-        vel = root_velocity(seq)[None].to(self.body.dtype)
         t1 = time.perf_counter()
         with torch.no_grad():  # not inference_mode: the result is an ordinary tensor, no copy of the sequence needed
-            delta, _ = self.net(self._inputs(betas, seq.poses[None].to(self.body.dtype), vel))
+            delta = self.displacements(seq)
             t2 = time.perf_counter()
             xc = self._canonical(delta, betas)[0]
             del delta  # (T, 3V): freed before skinning, which holds another (T, V, 3)
@@ -267,20 +266,26 @@ class GAPS(DrapingMethod):
         betas[0, : len(given)] = given.to(self.body.dtype)
         return betas
 
+    def displacements(self, seq) -> torch.Tensor:
+        """(1, T, 3V) m: the network's canonical displacements on ``seq`` (GRU state zero), no gradient."""
+        vel = root_velocity(seq)[None].to(self.body.dtype)
+        with torch.no_grad():
+            return self.net(self._inputs(self._sequence_betas(seq), seq.poses[None].to(self.body.dtype), vel))[0]
+
     def forward_sequence(self, garment, seq, h0=None):
         """Differentiable drape (T, V, 3) and final hidden state, for tests and fine-tuning."""
         betas = self._sequence_betas(seq)
         vel = root_velocity(seq)[None].to(self.body.dtype)
         delta, h = self.net(self._inputs(betas, seq.poses[None].to(self.body.dtype), vel), h0)
-        return self._skinned(delta, betas, seq), h
+        return self.skinned(delta, betas, seq), h
 
     def untrained_drape(self, seq) -> torch.Tensor:
         """(T, V, 3) m: the skinning alone (network output zero, where training starts) on ``seq``; needs the
         garment's constants (:meth:`_setup` or a :meth:`drape` of the garment)."""
         with torch.no_grad():
-            return self._skinned(torch.zeros(1, seq.n_frames, 3 * self.template.shape[0], dtype=self.body.dtype), self._sequence_betas(seq), seq)
+            return self.skinned(torch.zeros(1, seq.n_frames, 3 * self.template.shape[0], dtype=self.body.dtype), self._sequence_betas(seq), seq)
 
-    def _skinned(self, delta: torch.Tensor, betas: torch.Tensor, seq) -> torch.Tensor:
+    def skinned(self, delta: torch.Tensor, betas: torch.Tensor, seq) -> torch.Tensor:
         """The drape (T, V, 3) m of canonical displacements delta (1, T, 3V) m on ``seq`` with shape betas (1, S)."""
         return skin_then_translate(self._canonical(delta, betas)[0], self.weights, seq.transforms(self.body), seq.trans.to(self.body.dtype))
 

@@ -20,6 +20,7 @@ import numpy as np
 import torch
 
 from drapebench.diagnose import term_table
+from drapebench.geometry.ops import ring_mean
 
 CONF = Path(__file__).resolve().parents[2] / "conf" / "method" / "gensim.yaml"  # its fitted mu_fabric, sigma_fabric
 PRINTED = {"restrain_reduction": "sum", "restrain_offset": "printed", "restrain_huber": None}  # Eq. 3 as printed
@@ -74,13 +75,6 @@ def training_frames(method, garment_kind: str, motion: str, n_frames: int, seed:
     betas = torch.zeros(body.n_betas, dtype=body.dtype)
     G, _, d, verts, normals, _ = method.arap_stage(graph, betas, seq.poses[frames].to(body.dtype))
     return graph, G, d, verts, normals
-
-
-def ring_mean(x: torch.Tensor, topology) -> torch.Tensor:
-    """Mean of each vertex's 1-ring neighbours (B, V, 3) of positions x (B, V, 3)."""
-    owner, idx = topology.ring_owner, topology.ring_idx
-    total = torch.zeros_like(x).index_add_(1, owner, x[:, idx])
-    return total / topology.ring_sizes.clamp_min(1).to(x.dtype)[None, :, None]
 
 
 def arap_health(method, garment, seq) -> dict[str, float]:

@@ -256,3 +256,27 @@ def test_checkpoint_round_trip(scene):
     assert torch.allclose(m2.drape(g, seqs[0]).vertices, m.drape(g, seqs[0]).vertices)
     with pytest.raises(ValueError, match="trained with"):
         methods.get("gaps")({"kext": "one"}).load_state_dict(state)
+
+
+def test_the_diagnostic_takes_the_network_output_apart(scene):
+    """methods.gaps.diagnose.output_parts: an output that does not vary with the motion is all static part, a
+    uniform shift has no roughness, a per-vertex random field has; the parts are drapes of those outputs."""
+    from methods.gaps.diagnose import output_parts
+
+    body, g, seqs = scene
+    m = _set_up(body, g, {})
+    seq = seqs[0]
+    shift = torch.tensor([0.0, 0.0, 0.004]).repeat(g.n_vertices)  # 4 mm up, every vertex
+    with torch.no_grad():
+        m.net.out.bias.copy_(shift)
+    stats, parts = output_parts(m, seq)
+    assert stats["mean |D| (mm)"] == pytest.approx(4.0, rel=1e-4) and stats["static |S| (mm)"] == pytest.approx(4.0, rel=1e-4)
+    assert stats["varying |D - S| (mm)"] < 1e-3 and stats["roughness (mm)"] < 1e-3
+    torch.testing.assert_close(parts["static part"], m.drape(g, seq).vertices)
+    torch.testing.assert_close(parts["varying part"], m.untrained_drape(seq), atol=1e-6, rtol=0)
+    with torch.no_grad():
+        m.net.out.bias.copy_(0.004 * torch.randn(3 * g.n_vertices, generator=torch.Generator().manual_seed(0)))
+    rough, parts = output_parts(m, seq)
+    assert rough["roughness (mm)"] > 3.0
+    smooth = (parts["smoothed x3"] - m.untrained_drape(seq)).norm(dim=-1).mean()
+    assert 1e3 * smooth < 0.5 * rough["mean |D| (mm)"]  # averaging over the 1-rings shrinks a random field
