@@ -571,16 +571,31 @@ def only_methods(df: pd.DataFrame, methods: list[str] | None) -> pd.DataFrame:
     return df[df["method"].isin(order)].sort_values("method", key=lambda c: c.map(order), kind="stable")
 
 
-def write_table(dirs, name: str, out: Path, command: str | None = None, methods: list[str] | None = None) -> list[Path]:
+def only_garments(df: pd.DataFrame, garments: list[str] | None) -> pd.DataFrame:
+    """The rows of ``df`` whose garment is in ``garments`` (all rows for None); raises ValueError naming a
+    garment no run has."""
+    if not garments or df.empty:
+        return df
+    missing = [g for g in garments if g not in set(df["garment"])]
+    if missing:
+        raise ValueError(f"no run of garment(s) {', '.join(missing)} in the given directories; the runs have: {', '.join(dict.fromkeys(df['garment']))}")
+    return df[df["garment"].isin(garments)]
+
+
+def write_table(dirs, name: str, out: Path, command: str | None = None, methods: list[str] | None = None,
+                garments: list[str] | None = None) -> list[Path]:
     """Write ``out``.md/.tex/.csv and ``out``_runtime.png for table ``name`` (rows: ``methods`` in that order,
-    or every method of the runs), and ``out``_bars.png for a table of ``BAR_FIGURES``; returns the paths."""
+    or every method of the runs; only the runs of ``garments`` when given), and ``out``_bars.png for a table
+    of ``BAR_FIGURES``; returns the paths."""
     if name not in TABLES:
         raise KeyError(f"unknown table {name!r}; tables: {', '.join(TABLES)}")
     metrics, group = TABLES[name]
-    df = only_methods(collect(dirs), methods)
+    df = only_garments(only_methods(collect(dirs), methods), garments)
     failed = collect_failures(dirs)
     if methods and not failed.empty:
         failed = failed[failed["method"].isin(methods)]
+    if garments and not failed.empty:
+        failed = failed[failed["garment"].isin(garments)]
     t = run_table(df, failed, metrics) if group is None else mark_failures(table(df, metrics, group=group), failed, group=group)
     command = command or "python -m drapebench.report " + " ".join(sys.argv[1:])
     prov = provenance(pd.concat([df, failed]), command)
@@ -652,6 +667,8 @@ def main(argv=None) -> None:
     parser.add_argument("--table", default="baseline", choices=sorted(TABLES))
     parser.add_argument("--methods", type=lambda s: [m for m in s.split(",") if m],
                         help="comma-separated methods to show, in this order (default: every method of the runs)")
+    parser.add_argument("--garments", type=lambda s: [g for g in s.split(",") if g],
+                        help="comma-separated garments whose runs the table reads (default: every run's)")
     parser.add_argument("--out", type=Path, help="output path without suffix (default: a new folder outputs/reports/<time>/<table>; "
                         "give reports/<table> to replace a committed table)")
     parser.add_argument("--loss-curves", action="store_true", help="instead: losses.png beside every losses.csv in dirs")
@@ -675,7 +692,7 @@ def main(argv=None) -> None:
         for csv in sorted(c for d in args.dirs for c in Path(d).rglob("losses.csv")):
             print(loss_curve_plot(csv))
         return
-    for p in write_table(args.dirs, args.table, args.out or default_out(args.table), methods=args.methods):
+    for p in write_table(args.dirs, args.table, args.out or default_out(args.table), methods=args.methods, garments=args.garments):
         print(p)
 
 

@@ -245,6 +245,16 @@ def test_methods_filter_orders_rows_and_names_a_missing_method(tmp_path):
         main([str(FIXTURES), "--table", "baseline", "--methods", "lbs,gensim", "--out", str(tmp_path / "v")])
 
 
+def test_garments_filter_keeps_the_runs_of_the_garments_named(tmp_path):
+    from drapebench.report import main
+
+    main([str(FIXTURES), "--table", "baseline", "--garments", "skirt", "--out", str(tmp_path / "t")])
+    header = pd.read_csv(tmp_path / "t.csv", comment="#", header=[0, 1], index_col=0).columns.get_level_values(0)
+    assert set(header) == {"skirt"}
+    with pytest.raises(ValueError, match="no run of garment.*gown"):
+        main([str(FIXTURES), "--table", "baseline", "--garments", "gown", "--out", str(tmp_path / "u")])
+
+
 def test_generalisation_matrix_groups_columns_by_experiment_and_explains_empty_cells(tmp_path):
     import json
     import shutil
