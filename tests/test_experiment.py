@@ -113,7 +113,7 @@ def test_the_run_seed_is_the_training_seed_and_a_new_seed_trains_a_new_checkpoin
 
 def test_gaps_reads_its_own_training_keys_per_budget_and_a_wrong_train_key_fails():
     cpu = _compose(["method=gaps"]).method.params.train
-    assert cpu.lr_output_factor == 0.02 and cpu.kext_ramp_epochs == 3 and cpu.window == 3  # conf/method/gaps_budget/cpu.yaml
+    assert cpu.lr_output_factor == 0.1 and cpu.output_adam_eps == 1.0 and cpu.kext_ramp_epochs == 3 and cpu.window == 3  # gaps_budget/cpu.yaml
     for ablation in ("gaps_kext1", "gaps_no_inext", "snug_like", "ncs_like"):
         paper = _compose([f"method={ablation}", "train=paper"]).method.params.train
         assert paper.lr_output_factor == 1.0 and paper.kext_ramp_epochs == 100, ablation
