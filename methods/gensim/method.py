@@ -90,7 +90,7 @@ class GenSim(DrapingMethod):
     def _new_net(self) -> PEN:
         p = self.p
         return PEN(p["latent"], p["geometry"], p["steps"], p["direction"], p["magnitude_scale"], p["decoder"], p["decoder_init"],
-                   p["input_norm"]).to(self.body.dtype)  # fmt: skip
+                   p["input_norm"], p["normal_part"]).to(self.body.dtype)  # fmt: skip
 
     def arap_stage(self, graph: GarmentGraph, betas: torch.Tensor, poses: torch.Tensor):
         """ARAP-deformed garment (T, V, 3), handle masks (T, V) bool and body motion d (T, V, 3), all in the

@@ -97,14 +97,25 @@ class EdgeUpdate(nn.Module):
         return e + self.rest(first)
 
 
-def local_frame_displacement(a: torch.Tensor, b: torch.Tensor, c: torch.Tensor, normal: torch.Tensor, scale: float, sharpness: float = 100.0) -> torch.Tensor:
+NORMAL_PARTS = ("abs", "softplus")
+
+
+def local_frame_displacement(a: torch.Tensor, b: torch.Tensor, c: torch.Tensor, normal: torch.Tensor, scale: float, sharpness: float = 100.0,
+                             normal_part: str = "softplus") -> torch.Tensor:  # fmt: skip
     """Displacement (..., 3) m in the local frame (n, t1, t2) of the unit body normal n (..., 3):
-    scale (m) x [softplus(a) n + b t1 + c t2], softplus of the given ``sharpness`` (a smooth max(a, 0)).
-    Its normal component is >= 0, so it spans the half-space of Eq. 1 (every direction D_hat with
-    D_hat . n >= 0, any magnitude) and is linear in b, c at zero: it can leave zero displacement."""
+    scale (m) x [f(a) n + b t1 + c t2] with f = ``normal_part``: "abs" |a| (Eq. 1's |rho|: its gradient is
+    +-1 wherever a != 0) or "softplus" of the given ``sharpness`` (a smooth max(a, 0); its gradient vanishes
+    once a is a few 1/sharpness below 0). The normal component is >= 0, so it spans the half-space of Eq. 1
+    (every direction D_hat with D_hat . n >= 0, any magnitude) and is linear in b, c at zero: it can leave
+    zero displacement."""
     t1, t2 = tangent_basis(normal)
-    normal_part = nn.functional.softplus(a, beta=sharpness)
-    return scale * (normal_part[..., None] * normal + b[..., None] * t1 + c[..., None] * t2)
+    if normal_part == "abs":
+        along = a.abs()
+    elif normal_part == "softplus":
+        along = nn.functional.softplus(a, beta=sharpness)
+    else:
+        raise ValueError(f"gensim normal_part must be one of {NORMAL_PARTS}, not {normal_part!r}")
+    return scale * (along[..., None] * normal + b[..., None] * t1 + c[..., None] * t2)
 
 
 class PEN(nn.Module):
@@ -114,18 +125,22 @@ class PEN(nn.Module):
 
     ``decoder`` "eq1": Eq. 1's direction (``displacement_direction`` in mode ``direction``) times the magnitude
     w = magnitude_scale x softplus(raw), the output layer scaled by 0.01 with the magnitude's bias at -4 (a
-    start at about 0.2 mm); "local": :func:`local_frame_displacement` with scale ``magnitude_scale`` (b1, b2
-    the tangent coefficients, rho the normal one, w = |delta|) and, by ``decoder_init``, PyTorch's default
-    output layer ("default": a start at a few mm) or a zero one ("zero": softplus(0) / 100 x scale = 0.07 mm
-    along the normal; the output stays linear in the layer's weights, so it leaves zero). With ``input_norm`` the
+    start at about 0.2 mm); "local": :func:`local_frame_displacement` with scale ``magnitude_scale`` and
+    ``normal_part`` (b1, b2 the tangent coefficients, rho the normal one, w = |delta|) and, by ``decoder_init``,
+    PyTorch's default output layer ("default": a start at a few mm) or a zero one ("zero": a start at 0, or
+    at softplus(0) / 100 x scale = 0.07 mm along the normal; the output stays linear in the layer's weights,
+    so it leaves zero). With ``input_norm`` the
     node and edge inputs are standardised by the statistics given to :meth:`set_input_statistics`."""
 
     N_NODE = 3 * 4 + 2  # u, v, d, n, pin, mass
     N_EDGE = 8  # E_ij, |E_ij|, E_ij^ARAP, |E_ij^ARAP|
 
     def __init__(self, latent: int = 128, geometry: int = 32, steps: int = 8, direction: str = "tangent", magnitude_scale: float = 0.01,
-                 decoder: str = "local", decoder_init: str = "default", input_norm: bool = False):  # fmt: skip
+                 decoder: str = "local", decoder_init: str = "default", input_norm: bool = False, normal_part: str = "softplus"):  # fmt: skip
         super().__init__()
+        if normal_part not in NORMAL_PARTS:
+            raise ValueError(f"gensim normal_part must be one of {NORMAL_PARTS}, not {normal_part!r}")
+        self.normal_part = normal_part
         self.input_norm = bool(input_norm)
         if self.input_norm:  # standardised node and edge inputs (set_input_statistics), saved with the weights
             for name, n in (("node", self.N_NODE), ("edge", self.N_EDGE)):
@@ -189,7 +204,7 @@ class PEN(nn.Module):
         h = h.transpose(0, 1)
         out = self.decoder(h)
         if self.decoder_kind == "local":
-            delta = local_frame_displacement(out[..., 2], out[..., 0], out[..., 1], normal, self.magnitude_scale)
+            delta = local_frame_displacement(out[..., 2], out[..., 0], out[..., 1], normal, self.magnitude_scale, normal_part=self.normal_part)
             return delta, (out[..., 0], out[..., 1], out[..., 2], delta.norm(dim=-1))
         b1, b2, rho, w = out[..., 0], out[..., 1], torch.tanh(out[..., 2]), out[..., 3]
         magnitude = self.magnitude_scale * nn.functional.softplus(w)

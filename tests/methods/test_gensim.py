@@ -10,7 +10,7 @@ from drapebench.geometry.ops import vertex_normals
 from drapebench.physics import Material
 from methods.gensim import losses
 from methods.gensim.arap import ArapConfig, bind, front_aligned, handle_targets, motion_aware_arap, neighbour_mean, skinned_template
-from methods.gensim.network import PEN, displacement_direction, tangent_basis
+from methods.gensim.network import PEN, displacement_direction, local_frame_displacement, tangent_basis
 from drapebench.geometry.topology import get_topology
 from tests.meshes import grid_mesh
 
@@ -170,6 +170,21 @@ def test_zero_initialised_local_decoder_starts_at_the_normal_offset_and_learns()
     assert net.decoder[-1].weight.grad.abs().sum() > 1e-3  # the zero layer has a gradient: it leaves zero
     with pytest.raises(ValueError, match="decoder_init"):
         PEN(decoder_init="small")
+
+
+def test_abs_normal_part_keeps_its_gradient_where_softplus_loses_it():
+    n = _random_normals(100)
+    a = torch.full((100,), -1.0, requires_grad=True)  # a trained PEN's normal coefficient sat at -1.0 to -1.7
+    b, c = torch.randn(2, 100)
+    grads = {}
+    for mode in ("abs", "softplus"):
+        delta = local_frame_displacement(a, b, c, n, 0.01, normal_part=mode)
+        assert ((delta * n).sum(-1) >= -1e-7).all()  # Eq. 1's half-space either way
+        (g,) = torch.autograd.grad((delta * n).sum(), a)
+        grads[mode] = g.abs().mean()
+    assert grads["abs"] > 1e-3 and grads["softplus"] < 1e-30  # softplus_100(-1): no way back to pushing outward
+    with pytest.raises(ValueError, match="normal_part"):
+        local_frame_displacement(a, b, c, n, 0.01, normal_part="relu")
 
 
 def test_input_norm_standardises_pens_inputs_with_the_stored_statistics():
