@@ -42,7 +42,7 @@ def load_run(run_dir: str | Path) -> TrainedRun:
     run_dir = Path(run_dir)
     cfg = OmegaConf.load(run_dir / "config.yaml")
     ckpt = json.loads((run_dir / "metrics.json").read_text()).get("checkpoint")
-    if not ckpt or not Path(ckpt).exists():
+    if ckpt and not Path(ckpt).exists():
         raise FileNotFoundError(f"{run_dir}: its checkpoint {ckpt!r} is not in the cache; rerun the run to train it again")
     body = load_body(cfg.body.name)
     material = Material.from_config(OmegaConf.to_container(cfg.material, resolve=True))
@@ -50,5 +50,6 @@ def load_run(run_dir: str | Path) -> TrainedRun:
     garment = garment_from_config(OmegaConf.to_container(cfg.garment, resolve=True), body, seq.betas)
     method = methods.get(cfg.method.impl)(OmegaConf.to_container(cfg.method.params, resolve=True))
     method.bind(body, material)
-    method.load_state_dict(torch.load(ckpt, map_location="cpu", weights_only=False)["method"])
+    if ckpt:  # a method with nothing to learn (lbs, an optimum row) has no checkpoint
+        method.load_state_dict(torch.load(ckpt, map_location="cpu", weights_only=False)["method"])
     return TrainedRun(cfg, method, body, material, garment, seq)

@@ -3,11 +3,14 @@ its gradient per vertex (N), at the untrained skinning (network output zero); or
 of a trained run's drape beside its untrained skinning's and those of the parts of its network's output (the
 static part, the part that varies with the motion, the output smoothed over each 1-ring), with the output's
 size and roughness, on the run's test sequence (or, with ``--training-motion``, on the first training
-sequence of that motion, at the run's body shape).
+sequence of that motion, at the run's body shape); or, with ``--pinned`` and a ``gaps_optimum`` run, how far
+from the run's reference its untrained skinning, its optimum and the optimum with the garment's pins held
+where the reference holds them are, at the pins and elsewhere (whether a pin term would close the gap).
 
     python -m methods.gaps.diagnose --garment tshirt --body anny_lowres             # train=cpu's GAPS keys
     python -m methods.gaps.diagnose --garment tshirt --budget paper --epoch 100 --windows 16
     python -m methods.gaps.diagnose --run multirun/<date>/<sweep>/<run> [--training-motion dance]
+    python -m methods.gaps.diagnose --run multirun/<date>/<sweep>/<gaps_optimum run> --pinned [--frames 40]
 """
 
 from __future__ import annotations
@@ -85,6 +88,47 @@ def output_parts(m, seq) -> tuple[dict, dict]:
         return stats, {name: m.skinned(d.reshape(1, T, -1), betas, seq) for name, d in parts.items()}
 
 
+def pinned_optimum(run_dir, n_frames: int | None = None, weight: float = 1e5) -> pd.DataFrame:
+    """Distance (mm) to the reference of a ``gaps_optimum`` run's untrained skinning, of its optimum (read from
+    the run's prediction.h5) and of GAPS's loss minimised with the garment's pins held at the reference's pin
+    positions (a penalty ``weight`` x |x_pin - reference_pin|^2, J per m^2), over the run's first ``n_frames``
+    frames (None: all) after the transition: one row each, the mean over all vertices, the pins and the rest."""
+    from drapebench.optimum import optimise_sequence
+    from drapebench.results import read_prediction
+    from drapebench.trained_run import load_run
+
+    run = load_run(run_dir)
+    m, g, seq = run.method, run.garment, run.seq
+    if m.name != "gaps_optimum":
+        raise ValueError(f"--pinned reads a gaps_optimum run, not a {m.name} run ({run_dir})")
+    reference = run.reference()
+    if reference is None:
+        raise ValueError(f"{run_dir} has no reference drape (reference=none); rerun it with reference=vbd")
+    T = seq.n_frames if n_frames is None else min(int(n_frames), seq.n_frames)
+    m._setup(g)
+    start = m.untrained_drape(seq)[:T]
+    reference = reference[:T].to(start.dtype)
+    optimum = torch.as_tensor(read_prediction(f"{run_dir}/prediction.h5")[0][:T]).to(start.dtype)
+    pins = g.pins.long()
+    base = m.window_loss(seq, m.kext_epoch())
+
+    def pinned_loss(t: int, window: torch.Tensor):
+        value, terms = base(t, window)
+        pin = weight * (window[-1, pins] - reference[t, pins]).pow(2).sum()
+        return value + pin, {**terms, "pin": pin}
+
+    o = m.o
+    pinned = optimise_sequence(pinned_loss, start, m.p["train"]["window"], o["solver"], o["iterations"], o["lr"], o["history"]).vertices
+    free = torch.ones(g.n_vertices, dtype=torch.bool)
+    free[pins] = False
+    first = min(int(seq.n_transition), T - 1)
+    rows = []
+    for name, x in (("untrained", start), ("optimum", optimum), ("optimum, pins at the reference's", pinned)):
+        d = (x[first:] - reference[first:]).norm(dim=-1) * 1e3
+        rows.append({"drape": name, "all (mm)": float(d.mean()), "pins (mm)": float(d[:, pins].mean()), "rest (mm)": float(d[:, free].mean())})
+    return pd.DataFrame(rows)
+
+
 def run_terms(run_dir, training_motion: str | None = None) -> tuple[pd.DataFrame, dict]:
     """GAPS's loss terms (its weights and normalisation, k_ext at the end of the ramp; mean per frame over the
     frames after the transition) of a gaps run's trained drape, of its untrained skinning and of the parts of
@@ -126,8 +170,14 @@ def main(argv=None) -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--run", help="a gaps run folder: its trained drape's terms beside its untrained skinning's")
     ap.add_argument("--training-motion", help="with --run: score the first train_small sequence of this motion instead")
+    ap.add_argument("--pinned", action="store_true", help="with a gaps_optimum --run: its optimum with the pins held at the reference's")
+    ap.add_argument("--frames", type=int, default=None, help="with --pinned: the first N frames only (default: all)")
     a = ap.parse_args(argv)
     torch.set_num_threads(1)
+    if a.run and a.pinned:
+        print("Distance to the reference (mm) over the frames after the transition: all vertices, the pins, the rest")
+        print(pinned_optimum(a.run, a.frames).to_string(index=False, float_format=lambda v: f"{v:.2f}"))
+        return
     if a.run:
         table, stats = run_terms(a.run, a.training_motion)
         print("GAPS loss terms per frame (J per frame as the training normalises them), k_ext at the end of the ramp")
