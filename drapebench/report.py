@@ -22,6 +22,7 @@ import pandas as pd
 
 from drapebench.cache import PROJECT_ROOT, atomic_write
 from drapebench.results import METRICS, SUMMARY_COLUMNS, legend, metric_label
+from drapebench.train.convergence import converged_seconds
 
 # table name -> (metrics shown, what the column groups are)
 TABLES = {
@@ -30,7 +31,7 @@ TABLES = {
     "gaps_table2": (["eps_c"], "garment"),
     "gaps_heldout": (["vertex_error_mm", "vertex_error_mm@untrained", "eps_c", "eps_c@postprocessed"], "shape"),
     "gaps_table3": (["eps_e", "eps_a"], "shape"),
-    "runtime": (["train_s", "ms_per_frame"], "garment"),
+    "runtime": (["train_s", "converged_s", "ms_per_frame"], "garment"),
     "physics": (["eps_e", "eps_c", "penetration_mm", "jitter", "smoothness"], "garment"),
     "vae_table1": (["eps_c", "eps_c_canonical", "sampled_prior_pct", "sampled_codes_pct", "vertex_error_mm", "ms_per_frame"], "case"),
     "runtime_vs_error": (["ms_per_frame", "vertex_error_mm", "eps_e", "eps_a", "eps_c", "train_s"], "garment"),
@@ -86,13 +87,18 @@ def _run_files(d: Path, name: str) -> list[Path]:
 
 
 def collect(dirs) -> pd.DataFrame:
-    """One row per ``metrics.json`` found below ``dirs`` (a run dir or a sweep dir, jobs in job order), with its ``run_dir``."""
+    """One row per ``metrics.json`` found below ``dirs`` (a run dir or a sweep dir, jobs in job order), with its
+    ``run_dir`` and, for a run that trained (a ``losses.csv`` beside it), ``converged_s``
+    (:func:`drapebench.train.convergence.converged_seconds`)."""
     rows = []
     for d in dirs:
         d = Path(d)
         for f in _run_files(d, "metrics.json"):
             rec = json.loads(f.read_text())
             rec["run_dir"] = str(f.parent)
+            losses = f.parent / "losses.csv"
+            if rec.get("train_s") and losses.exists():
+                rec["converged_s"] = converged_seconds(losses, rec["train_s"])
             rows.append(rec)
     if not rows:
         raise FileNotFoundError(f"no metrics.json below {', '.join(map(str, dirs))}; did the runs finish?")

@@ -54,6 +54,8 @@ METRICS = {
                            "change of the mean garment-to-body distance between the first and last 10 % of frames"),
     "ms_per_frame": MetricInfo("ms/frame", "ms", "lower", "drape time per frame"),
     "train_s": MetricInfo("train (s)", "s", "lower", "training time"),
+    "converged_s": MetricInfo("to converge (s)", "s", "lower",
+                              "training time until the loss's running mean stays within 5 % of its total drop above its final value"),
     "energy_j": MetricInfo("energy (J)", "J", "lower, toward the reference's", "StVK + bending + gravity energy per frame"),
     "pen_mm": MetricInfo("PEN (mm)", "mm", "neither: how much GenSim's PEN moves its ARAP stage", "mean |PEN displacement| over vertices and frames"),
     "pen_p99_mm": MetricInfo("PEN p99 (mm)", "mm", "neither", "99th percentile of |PEN displacement| over vertices and frames"),
