@@ -39,7 +39,7 @@ METHOD_DEFAULTS = dict(
     direction="tangent",  # decoder eq1: tangent | paper (Eq. 1 as printed, b3 = (-b1 n1 - b2 n2) / n3)
     magnitude_scale=0.01,  # m: the local decoder's scale, or eq1's magnitude w = scale x softplus(raw)
     input_norm=True,  # standardise PEN's node and edge inputs by their mean and std over training frames
-    normal_part="softplus",  # local decoder's normal coefficient: abs (|a|, Eq. 1's |rho|) | softplus (sharpness 100: its gradient dies below 0)
+    normal_part="abs",  # local decoder's normal coefficient: abs (|a|, Eq. 1's |rho|) | softplus (sharpness 100: its gradient dies below 0)
     decoder_init="default",  # local decoder's output layer: default (PyTorch's: starts at a few mm) | zero (starts at 0.07 mm)
     eps=-0.5,  # handle threshold on tau (Alg. 2)
     handle_side="pushed",  # pushed | printed (Alg. 2 line 6 as printed)
@@ -53,7 +53,7 @@ METHOD_DEFAULTS = dict(
     fabric_mean=None,  # mu_fabric (m); None: fitted by methods.gensim.fabric (cached)
     fabric_std=None,  # sigma_fabric (m)
     restrain_reduction="mean",  # Eq. 3 over the edges: mean | sum (as printed)
-    restrain_offset="dead_zone",  # Eq. 3 on max(phi - mu, 0) (dead_zone), phi - mu (printed) or phi (none)
+    restrain_offset="none",  # Eq. 3 on max(phi - mu, 0) (dead_zone), phi - mu (printed) or phi (none)
     restrain_huber=5.0,  # sigmas beyond which Eq. 3's square continues linearly; null: square everywhere (as printed)
     weights=dict(WEIGHTS),  # gamma_1..6 (Eq. 9)
     supervised=False,  # gensim_l2: L2 to reference drapes + smoothness + collision (paper Table 2)

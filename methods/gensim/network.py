@@ -101,7 +101,7 @@ NORMAL_PARTS = ("abs", "softplus")
 
 
 def local_frame_displacement(a: torch.Tensor, b: torch.Tensor, c: torch.Tensor, normal: torch.Tensor, scale: float, sharpness: float = 100.0,
-                             normal_part: str = "softplus") -> torch.Tensor:  # fmt: skip
+                             normal_part: str = "abs") -> torch.Tensor:  # fmt: skip
     """Displacement (..., 3) m in the local frame (n, t1, t2) of the unit body normal n (..., 3):
     scale (m) x [f(a) n + b t1 + c t2] with f = ``normal_part``: "abs" |a| (Eq. 1's |rho|: its gradient is
     +-1 wherever a != 0) or "softplus" of the given ``sharpness`` (a smooth max(a, 0); its gradient vanishes
@@ -127,16 +127,16 @@ class PEN(nn.Module):
     w = magnitude_scale x softplus(raw), the output layer scaled by 0.01 with the magnitude's bias at -4 (a
     start at about 0.2 mm); "local": :func:`local_frame_displacement` with scale ``magnitude_scale`` and
     ``normal_part`` (b1, b2 the tangent coefficients, rho the normal one, w = |delta|) and, by ``decoder_init``,
-    PyTorch's default output layer ("default": a start at a few mm) or a zero one ("zero": a start at 0, or
-    at softplus(0) / 100 x scale = 0.07 mm along the normal; the output stays linear in the layer's weights,
-    so it leaves zero). With ``input_norm`` the
+    PyTorch's default output layer ("default": a start at a few mm) or a zero one ("zero", with ``normal_part``
+    "softplus" only: softplus(0) / 100 x scale = 0.07 mm along the normal; the output stays linear in the
+    layer's weights, so it leaves zero). With ``input_norm`` the
     node and edge inputs are standardised by the statistics given to :meth:`set_input_statistics`."""
 
     N_NODE = 3 * 4 + 2  # u, v, d, n, pin, mass
     N_EDGE = 8  # E_ij, |E_ij|, E_ij^ARAP, |E_ij^ARAP|
 
     def __init__(self, latent: int = 128, geometry: int = 32, steps: int = 8, direction: str = "tangent", magnitude_scale: float = 0.01,
-                 decoder: str = "local", decoder_init: str = "default", input_norm: bool = False, normal_part: str = "softplus"):  # fmt: skip
+                 decoder: str = "local", decoder_init: str = "default", input_norm: bool = False, normal_part: str = "abs"):  # fmt: skip
         super().__init__()
         if normal_part not in NORMAL_PARTS:
             raise ValueError(f"gensim normal_part must be one of {NORMAL_PARTS}, not {normal_part!r}")
@@ -150,6 +150,9 @@ class PEN(nn.Module):
             raise ValueError(f"gensim decoder must be 'eq1' or 'local', not {decoder!r}")
         if decoder_init not in ("default", "zero"):
             raise ValueError(f"gensim decoder_init must be 'default' or 'zero', not {decoder_init!r}")
+        if decoder == "local" and decoder_init == "zero" and normal_part == "abs":
+            raise ValueError("gensim decoder_init 'zero' with normal_part 'abs' would start the normal coefficient at a = 0, where |a| "
+                             "has no gradient, so PEN could never push outward; use normal_part 'softplus' or decoder_init 'default'")  # fmt: skip
         self.direction, self.magnitude_scale, self.decoder_kind = direction, magnitude_scale, decoder
         self.garment_encoder = PointNetEncoder(geometry)
         self.body_encoder = PointNetEncoder(geometry)

@@ -128,13 +128,13 @@ def test_paper_direction_breaks_where_n3_is_zero():
     assert ((D[~bad] * n[~bad]).sum(-1) >= -1e-6).all()
 
 
-def _tiny_pen_inputs(decoder, decoder_init="default"):
+def _tiny_pen_inputs(decoder, decoder_init="default", normal_part="abs"):
     verts, topo = _sheet(6, 0.1)
     V = len(verts)
     e = topo.edges
     senders, receivers = torch.cat([e[:, 0], e[:, 1]]), torch.cat([e[:, 1], e[:, 0]])
     torch.manual_seed(0)
-    net = PEN(latent=16, geometry=8, steps=2, decoder=decoder, decoder_init=decoder_init)
+    net = PEN(latent=16, geometry=8, steps=2, decoder=decoder, decoder_init=decoder_init, normal_part=normal_part)
     normal = torch.nn.functional.normalize(torch.randn(2, V, 3), dim=-1)
     inputs = (torch.randn(2, V, PEN.N_NODE), torch.randn(2, len(senders), PEN.N_EDGE), senders, receivers, verts,
               torch.randn(1, 30, 3), torch.randint(0, 30, (2, V)), normal)  # fmt: skip
@@ -162,7 +162,7 @@ def test_local_decoder_leaves_zero_and_every_direction_is_learnable():
 
 
 def test_zero_initialised_local_decoder_starts_at_the_normal_offset_and_learns():
-    net, inputs, normal = _tiny_pen_inputs("local", "zero")
+    net, inputs, normal = _tiny_pen_inputs("local", "zero", "softplus")
     delta, _ = net(*inputs)
     offset = 0.01 * torch.log(torch.tensor(2.0)) / 100  # scale x softplus(0) with sharpness 100, along the normal
     assert torch.allclose(delta, offset * normal, atol=1e-9)
@@ -170,6 +170,8 @@ def test_zero_initialised_local_decoder_starts_at_the_normal_offset_and_learns()
     assert net.decoder[-1].weight.grad.abs().sum() > 1e-3  # the zero layer has a gradient: it leaves zero
     with pytest.raises(ValueError, match="decoder_init"):
         PEN(decoder_init="small")
+    with pytest.raises(ValueError, match="no gradient"):  # |a| at a = 0: the normal coefficient could never leave it
+        PEN(decoder_init="zero", normal_part="abs")
 
 
 def test_abs_normal_part_keeps_its_gradient_where_softplus_loses_it():
