@@ -40,12 +40,28 @@ def strain_rgb(strain: np.ndarray, max_strain: float = 0.1) -> np.ndarray:
     return rgb.astype(np.uint8)
 
 
+def displacement_rgb(distance_mm: np.ndarray, max_mm: float) -> np.ndarray:
+    """RGB (..., 3) uint8 of distances (...) in mm: white (0) -> light blue -> dark blue (>= ``max_mm``)."""
+    s = np.clip(distance_mm / max_mm, 0, 1)[..., None]
+    white, light, dark = np.array([235, 235, 240.0]), np.array([110, 170, 235.0]), np.array([20, 40, 150.0])
+    rgb = np.where(s < 0.5, white + (light - white) * s * 2, light + (dark - light) * (s * 2 - 1))
+    return rgb.astype(np.uint8)
+
+
+def displacement_scale(distance_mm: np.ndarray) -> float:
+    """The colour scale's top (mm) for distances (...): their 99th percentile rounded up to 1, 2 or 5 x 10^k, at least 1 mm."""
+    top = max(float(np.quantile(distance_mm, 0.99)), 1.0)
+    step = 10 ** np.floor(np.log10(top))
+    return float(next(m * step for m in (1, 2, 5, 10) if m * step >= top))
+
+
 LEGEND = """**Colours**
 
 - garment: strain, the mean relative edge-length change at a vertex: white 0 -> orange 5 % -> red >= 10 %
 - **magenta** garment vertices: inside the body (the rule behind eps_c)
 - skin: the posed body; blue `reference`: the physics-based drape (hidden, tick it in the blueprint)
-- green `stages/*`: a method's intermediate meshes (hidden), yellow points: its handle vertices
+- green `stages/*`: a method's intermediate meshes (hidden), yellow points: its handle vertices; `moved/*`
+  (its own view): the drape coloured by its distance from that stage, white 0 -> blue (scale below)
 
 **Plots** (per frame; the rest-pose transition at the start is not evaluated): eps_e / eps_a mean edge / face-area
 change (%), eps_c vertices inside the body (%), penetration_mm, vertex_error_mm (mm). Lower is better;
@@ -83,19 +99,23 @@ def walk_in_place(x: torch.Tensor, root_translation: torch.Tensor) -> torch.Tens
     return x - shift
 
 
-def _blueprint(name: str, eye: np.ndarray, target: np.ndarray, hidden: list[str], plots: list[str]):
-    """The view a recording opens on: the 3D scene framed by ``eye``/``target`` beside the per-frame
-    metric plots and the colour legend, on the ``frame`` timeline."""
+def _blueprint(name: str, eye: np.ndarray, target: np.ndarray, hidden: list[str], plots: list[str], moved: list[str] = ()):
+    """The view a recording opens on: the 3D scene framed by ``eye``/``target`` (and, per stage in ``moved``,
+    a 3D view of the body and ``moved/<stage>``) beside the per-frame metric plots and the colour legend, on
+    the ``frame`` timeline."""
     import rerun.blueprint as rrb
 
     overrides = {e: rrb.EntityBehavior(visible=False) for e in hidden} or None
-    scene = rrb.Spatial3DView(origin="/", name=name, contents=["+ /**", "- /metrics/**", "- /legend"], overrides=overrides,
-                              eye_controls=rrb.EyeControls3D(position=eye, look_target=target, eye_up=(0.0, 0.0, 1.0)))  # fmt: skip
+    eyes = rrb.EyeControls3D(position=eye, look_target=target, eye_up=(0.0, 0.0, 1.0))
+    scene = rrb.Spatial3DView(origin="/", name=name, contents=["+ /**", "- /metrics/**", "- /legend", "- /moved/**"], overrides=overrides,
+                              eye_controls=eyes)  # fmt: skip
+    scenes = [scene] + [rrb.Spatial3DView(origin="/", name=f"moved from {k}", contents=["+ /body", f"+ /moved/{k}"], eye_controls=eyes)
+                        for k in moved]  # fmt: skip
     side = [rrb.TimeSeriesView(name=f"{title} per frame", origin="/metrics", contents=[f"+ /metrics/{m}" for m in group])
             for title, group in (("%", [m for m in plots if m in PERCENT_PLOTS]), ("mm", [m for m in plots if m in MM_PLOTS])) if group]  # fmt: skip
     side.append(rrb.TextDocumentView(origin="/legend", name="legend"))
     return rrb.Blueprint(
-        rrb.Horizontal(scene, rrb.Vertical(*side, row_shares=[2] * (len(side) - 1) + [1]), column_shares=[3, 2]),
+        rrb.Horizontal(*scenes, rrb.Vertical(*side, row_shares=[2] * (len(side) - 1) + [1]), column_shares=[3] * len(scenes) + [2]),
         rrb.TimePanel(timeline="frame", state="collapsed"), rrb.BlueprintPanel(state="collapsed"),
         rrb.SelectionPanel(state="collapsed"),
     )  # fmt: skip
@@ -137,8 +157,10 @@ def record_drape(
     logged once (static). Garment colours show strain; ``penetrating`` (T, V) bool vertices are
     magenta. An optional physics-based ``reference`` (T, V, 3) is logged as ``reference`` (blue,
     hidden by default). ``stages`` are a method's intermediate results (``DrapeResult.extras``): each
-    (T, V, 3) one is a mesh ``stages/<name>`` (green, hidden by default), each (T, V) bool one the
-    points ``stages/<name>`` at those vertices of the first mesh stage (yellow). ``metrics`` (a
+    (T, V, 3) one is a mesh ``stages/<name>`` (green, hidden by default) and, in a 3D view of its own, the
+    drape ``moved/<name>`` coloured by its distance from that stage (white 0 -> blue at the 99th
+    percentile, e.g. GenSim's PEN displacement as its Fig. 11 shows it); each (T, V) bool one the points
+    ``stages/<name>`` at those vertices of the first mesh stage (yellow). ``metrics`` (a
     per-frame DataFrame with a ``frame`` column, the run's frames.csv) are plotted beside the 3D view
     as ``metrics/<name>`` time series. A ``legend`` text entity says what the colours mean. The view
     opens on the ``frame`` timeline with a camera that frames the whole body. ``in_place`` (T, 3), the
@@ -162,8 +184,11 @@ def record_drape(
     masks = {k: v for k, v in stages.items() if v.dim() == 2 and v.dtype == torch.bool}
     hidden = (["reference"] if reference is not None else []) + [f"stages/{k}" for k in meshes]
     plots = [] if metrics is None else [m for m in (*PERCENT_PLOTS, *MM_PLOTS) if m in metrics and metrics[m].notna().any()]
+    moved = {k: ((garment_vertices - v).detach().double().norm(dim=-1) * 1e3).numpy() for k, v in meshes.items()}
+    scales = {k: displacement_scale(d) for k, d in moved.items()}
+    legend += "".join(f"\n`moved/{k}`: distance of the drape from the `{k}` stage, white 0 -> blue >= {scales[k]:g} mm\n" for k in moved)
     eye, target = camera(body_vertices.detach().float().numpy())
-    blueprint = _blueprint(name, eye, target, hidden, plots)
+    blueprint = _blueprint(name, eye, target, hidden, plots, list(moved))
     stream = rr.RecordingStream("drapebench", recording_id=f"{name}-{np.random.default_rng().integers(1 << 62)}")
     path = Path(path)
     faces = garment_topology.faces
@@ -179,6 +204,7 @@ def record_drape(
             _send_mesh(stream, "reference", reference, faces, index, albedo=(0.35, 0.55, 0.95, 1.0))
         for k, v in meshes.items():
             _send_mesh(stream, f"stages/{k}", v, faces, index, albedo=(0.45, 0.8, 0.45, 1.0))
+            _send_mesh(stream, f"moved/{k}", garment_vertices, faces, index, colors=displacement_rgb(moved[k], scales[k]))
         if masks and meshes:
             base = next(iter(meshes.values())).detach().float()
             for k, m in masks.items():

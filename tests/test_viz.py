@@ -95,7 +95,19 @@ def test_method_stages_are_recorded_as_their_own_entities(tmp_path):
     out = subprocess.run([str(rerun), "rrd", "print", "-v", str(path)], check=False, capture_output=True, text=True, timeout=60, env=env)
     assert out.returncode == 0, out.stderr
     assert "stages/arap" in out.stdout and "stages/handles" in out.stdout
+    assert "moved/arap" in out.stdout  # the drape coloured by its distance from the stage, in a view of its own
     assert "Points3D:positions" in out.stdout
+
+
+def test_distance_from_a_stage_is_coloured_white_to_blue_on_a_rounded_scale():
+    from drapebench.viz import displacement_rgb, displacement_scale
+
+    assert displacement_scale(np.array([0.0, 0.1])) == 1.0  # at least 1 mm
+    assert displacement_scale(np.linspace(0, 7.3, 1001)) == 10.0  # the p99 (7.2 mm) rounded up to 1, 2, 5 x 10^k
+    assert displacement_scale(np.linspace(0, 15, 1001)) == 20.0
+    rgb = displacement_rgb(np.array([0.0, 5.0, 10.0, 50.0]), 10.0)
+    assert rgb.dtype == np.uint8 and (rgb[0] == [235, 235, 240]).all() and (rgb[2] == rgb[3]).all()
+    assert rgb[1, 2] > rgb[1, 0] and rgb[2, 2] > rgb[2, 0]  # blue grows with the distance
 
 
 def _renderer_missing() -> str | None:
