@@ -97,8 +97,9 @@ def collect(dirs) -> pd.DataFrame:
             rec = json.loads(f.read_text())
             rec["run_dir"] = str(f.parent)
             losses = f.parent / "losses.csv"
-            if rec.get("train_s") and losses.exists():
-                rec["converged_s"] = converged_seconds(losses, rec["train_s"])
+            converged = converged_seconds(losses, rec["train_s"]) if rec.get("train_s") and losses.exists() else None
+            if converged is not None:
+                rec["converged_s"] = converged
             rows.append(rec)
     if not rows:
         raise FileNotFoundError(f"no metrics.json below {', '.join(map(str, dirs))}; did the runs finish?")

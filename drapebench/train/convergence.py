@@ -32,8 +32,13 @@ def converged_step(loss: np.ndarray, tolerance: float = TOLERANCE, smoothing_sha
     return int(above[-1]) + 2 if len(above) else 1
 
 
-def converged_seconds(losses_csv: str | Path, train_s: float) -> float:
+def converged_seconds(losses_csv: str | Path, train_s: float) -> float | None:
     """Training time (s) to :func:`converged_step` of the ``loss`` column of a run's ``losses.csv``, for a run
-    that trained ``train_s`` seconds in all."""
-    loss = pd.read_csv(losses_csv)["loss"].to_numpy()
+    that trained ``train_s`` seconds in all; None when the file holds no steps (a run with zero epochs)."""
+    try:
+        loss = pd.read_csv(losses_csv)["loss"].to_numpy()
+    except pd.errors.EmptyDataError:
+        return None
+    if len(loss) == 0:
+        return None
     return float(train_s) * min(converged_step(loss), len(loss)) / len(loss)

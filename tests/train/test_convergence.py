@@ -26,5 +26,7 @@ def test_converged_seconds_scales_the_training_time_by_the_steps(tmp_path):
     csv = tmp_path / "losses.csv"
     csv.write_text("step,loss\n" + "\n".join(f"{i + 1},{v}" for i, v in enumerate(np.r_[np.full(50, 4.0), np.full(150, 1.0)])))
     assert converged_seconds(csv, 200.0) == pytest.approx(200.0 * converged_step(np.r_[np.full(50, 4.0), np.full(150, 1.0)]) / 200)
+    (tmp_path / "empty.csv").write_text("")
+    assert converged_seconds(tmp_path / "empty.csv", 0.01) is None  # a run with zero epochs
     with pytest.raises(ValueError, match="finite"):
         converged_step(np.array([1.0, np.nan]))
