@@ -2,11 +2,9 @@
 culling of body parts far from the garment (``culled_body_vertices``; every query takes the result
 as ``candidates=``). The exact signed distance lives in :mod:`drapebench.geometry.sdf`.
 
-CPU queries use scipy's KD-tree (one tree per frame, the frames split over torch's threads; a single
-frame's points split over them) and CUDA tensors chunked ``torch.cdist``; the metrics find the nearest
-vertex of the whole body in the signed distance's BVH pass instead
-(:func:`drapebench.geometry.sdf.body_proximity`). Positions are in metres, float32 or float64 (results
-follow the dtype of ``points``).
+CPU queries use scipy's KD-tree (one tree per frame, the frames split over torch's threads) and CUDA
+tensors chunked ``torch.cdist``; the metrics find the nearest vertex of the whole body in the signed
+distance's BVH pass instead (:func:`drapebench.geometry.sdf.body_proximity`). Positions are in metres, float32 or float64 (results follow the dtype of ``points``).
 """
 
 from __future__ import annotations
@@ -118,13 +116,11 @@ def nearest_indices(points: torch.Tensor, body_vertices: torch.Tensor, candidate
         p, q = pts.cpu().numpy(), body.cpu().numpy()
         tree = tree or (cKDTree(q[0]) if shared else None)
 
-        def frame(b: int, workers: int = 1) -> np.ndarray:
-            return (tree or cKDTree(q[b])).query(p[b], workers=workers)[1]
+        def frame(b: int) -> np.ndarray:
+            return (tree or cKDTree(q[b])).query(p[b], workers=1)[1]
 
         n_threads = min(torch.get_num_threads(), len(p))
-        if len(p) == 1:  # one frame: scipy splits its points over torch's threads
-            idx = frame(0, torch.get_num_threads())[None]
-        elif n_threads <= 1:
+        if n_threads <= 1:
             idx = np.stack([frame(b) for b in range(len(p))])
         else:  # scipy builds and queries its trees without the GIL: one frame per thread
             from concurrent.futures import ThreadPoolExecutor
