@@ -384,7 +384,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
                              "it cannot play the same motion; choose a body of the same skeleton (anny, anny_lowres)")  # fmt: skip
         record_drape(out / "drape.rrd", seq.vertices(shown), shown.faces, result.vertices, garment.topology, seq.fps,
                      penetrating=inside, reference=reference, stages=result.extras, metrics=frames,
-                     name=f"{cfg.method.name}_{garment.kind}_{seq.name}", in_place=seq.trans)  # fmt: skip
+                     name=f"{cfg.method.name}_{garment.kind}_{seq.name}", in_place=seq.trans, displaced_from=method.displaced_from)  # fmt: skip
         stages["viz_s"] = time.perf_counter() - t
     stages["total_s"] = time.perf_counter() - t_start
     record.update(stages)

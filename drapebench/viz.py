@@ -151,15 +151,17 @@ def record_drape(
     metrics=None,
     name: str = "drape",
     in_place: torch.Tensor | None = None,
+    displaced_from: tuple[str, ...] = (),
 ) -> Path:
     """Write ``path`` (.rrd): body (T, Vb, 3) and garment (T, V, 3) meshes on a ``frame`` timeline
     (and ``time`` in seconds), shaded by per-frame vertex normals; triangles and flat colours are
     logged once (static). Garment colours show strain; ``penetrating`` (T, V) bool vertices are
     magenta. An optional physics-based ``reference`` (T, V, 3) is logged as ``reference`` (blue,
     hidden by default). ``stages`` are a method's intermediate results (``DrapeResult.extras``): each
-    (T, V, 3) one is a mesh ``stages/<name>`` (green, hidden by default) and, in a 3D view of its own, the
-    drape ``moved/<name>`` coloured by its distance from that stage (white 0 -> blue at the 99th
-    percentile, e.g. GenSim's PEN displacement as its Fig. 11 shows it); each (T, V) bool one the points
+    (T, V, 3) one is a mesh ``stages/<name>`` (green, hidden by default) and, for those named in
+    ``displaced_from`` (stages in the drape's own space), in a 3D view of its own the drape ``moved/<name>``
+    coloured by its distance from that stage (white 0 -> blue at the 99th percentile, e.g. GenSim's PEN
+    displacement as its Fig. 11 shows it); each (T, V) bool one the points
     ``stages/<name>`` at those vertices of the first mesh stage (yellow). ``metrics`` (a
     per-frame DataFrame with a ``frame`` column, the run's frames.csv) are plotted beside the 3D view
     as ``metrics/<name>`` time series. A ``legend`` text entity says what the colours mean. The view
@@ -184,7 +186,7 @@ def record_drape(
     masks = {k: v for k, v in stages.items() if v.dim() == 2 and v.dtype == torch.bool}
     hidden = (["reference"] if reference is not None else []) + [f"stages/{k}" for k in meshes]
     plots = [] if metrics is None else [m for m in (*PERCENT_PLOTS, *MM_PLOTS) if m in metrics and metrics[m].notna().any()]
-    moved = {k: ((garment_vertices - v).detach().double().norm(dim=-1) * 1e3).numpy() for k, v in meshes.items()}
+    moved = {k: ((garment_vertices - v).detach().double().norm(dim=-1) * 1e3).numpy() for k, v in meshes.items() if k in displaced_from}
     scales = {k: displacement_scale(d) for k, d in moved.items()}
     legend += "".join(f"\n`moved/{k}`: distance of the drape from the `{k}` stage, white 0 -> blue >= {scales[k]:g} mm\n" for k in moved)
     eye, target = camera(body_vertices.detach().float().numpy())
@@ -204,7 +206,8 @@ def record_drape(
             _send_mesh(stream, "reference", reference, faces, index, albedo=(0.35, 0.55, 0.95, 1.0))
         for k, v in meshes.items():
             _send_mesh(stream, f"stages/{k}", v, faces, index, albedo=(0.45, 0.8, 0.45, 1.0))
-            _send_mesh(stream, f"moved/{k}", garment_vertices, faces, index, colors=displacement_rgb(moved[k], scales[k]))
+            if k in moved:
+                _send_mesh(stream, f"moved/{k}", garment_vertices, faces, index, colors=displacement_rgb(moved[k], scales[k]))
         if masks and meshes:
             base = next(iter(meshes.values())).detach().float()
             for k, m in masks.items():

@@ -89,13 +89,15 @@ def test_method_stages_are_recorded_as_their_own_entities(tmp_path):
     handles = torch.zeros(T, 4, dtype=torch.bool)
     handles[:, :2] = True
     handles[3, 3] = True
-    path = record_drape(tmp_path / "s.rrd", g - 0.01, f, g, topo, 30.0, stages={"arap": g + 0.02, "handles": handles})
+    path = record_drape(tmp_path / "s.rrd", g - 0.01, f, g, topo, 30.0, stages={"arap": g + 0.02, "handles": handles, "canonical": g - 1.0},
+                        displaced_from=("arap",))  # fmt: skip
     rerun = Path(sys.executable).parent / "rerun"
     env = dict(os.environ, CI="1")
     out = subprocess.run([str(rerun), "rrd", "print", "-v", str(path)], check=False, capture_output=True, text=True, timeout=60, env=env)
     assert out.returncode == 0, out.stderr
     assert "stages/arap" in out.stdout and "stages/handles" in out.stdout
     assert "moved/arap" in out.stdout  # the drape coloured by its distance from the stage, in a view of its own
+    assert "stages/canonical" in out.stdout and "moved/canonical" not in out.stdout  # a stage in another space: no distance
     assert "Points3D:positions" in out.stdout
 
 

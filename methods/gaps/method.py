@@ -37,6 +37,7 @@ class GAPS(DrapingMethod):
 
     name = "gaps"
     devices = ("cpu",)  # its network, skinning weights and training inputs are built on the CPU
+    displaced_from = ("raw",)  # under collision_postprocess: the push-out's move
     generic = False
     needs_reference = False
 

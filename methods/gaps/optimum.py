@@ -24,6 +24,7 @@ class GapsOptimum(GAPS):
     (:data:`methods.gaps.config.OPTIMUM_DEFAULTS`)."""
 
     name = "gaps_optimum"
+    displaced_from = ("start",)  # the optimum's move from the untrained skinning
 
     def __init__(self, cfg=None):
         cfg = dict(cfg or {})

@@ -75,6 +75,7 @@ class GenSim(DrapingMethod):
 
     name = "gensim"
     devices = ("cpu",)  # PEN, the garment graphs and the ARAP stage (libigl) are built on the CPU
+    displaced_from = ("arap",)  # the recording colours PEN's displacement (Fig. 11)
     generic = True
     needs_reference = False
 
