@@ -16,6 +16,7 @@ from drapebench.cache import Cache, body_key, content_hash
 from drapebench.garments.pins import garment_pins
 from drapebench.geometry.ops import vertex_normals
 from drapebench.geometry.proximity import nearest_body_vertex
+from drapebench.geometry.sdf import closest_body_point
 from drapebench.geometry.topology import boundary_loops
 from drapebench.progress import progress
 from drapebench.train import Objective, train, train_config
@@ -34,7 +35,8 @@ FRAMES = Cache("gensim", 4)  # the ARAP stage of the training frames
 class GarmentGraph:
     """What PEN needs of one garment, whatever the frame: template (V, 3) m on the canonical body,
     topology, pins (P,) and the pin mask (V,), directed edges senders/receivers (2E,), template edge
-    vectors (2E, 3), vertex masses (V,) g, the canonical binding, and the betas it was made on."""
+    vectors (2E, 3), vertex masses (V,) g, the canonical binding, the betas it was made on, and u_surface (V, 3) m:
+    each template vertex's offset from its closest point on the canonical body's outer surface."""
 
     template: torch.Tensor
     topology: object
@@ -46,6 +48,7 @@ class GarmentGraph:
     mass_g: torch.Tensor
     binding: Binding
     betas: torch.Tensor
+    u_surface: torch.Tensor
 
 
 def garment_graph(garment, body, material) -> GarmentGraph:
@@ -57,8 +60,10 @@ def garment_graph(garment, body, material) -> GarmentGraph:
     e = garment.topology.edges
     senders, receivers = torch.cat([e[:, 0], e[:, 1]]), torch.cat([e[:, 1], e[:, 0]])
     b = bind(template, canonical, pins)
+    surface = closest_body_point(template[None], canonical[None], body.faces, outer_faces=body.outer_faces).point[0]
     return GarmentGraph(template, garment.topology, pins, b.pin, senders, receivers, template[receivers] - template[senders],
-                        garment.topology.vertex_masses(material).to(body.dtype) * 1e3, b, garment.betas.to(body.dtype))  # fmt: skip
+                        garment.topology.vertex_masses(material).to(body.dtype) * 1e3, b, garment.betas.to(body.dtype),
+                        template - surface)  # fmt: skip
 
 
 def hem_vertices(garment) -> torch.Tensor:
@@ -114,27 +119,38 @@ class GenSim(DrapingMethod):
 
     def features(self, graph: GarmentGraph, G, d, body_vertices, body_normals):
         """PEN's inputs for ARAP results G (B, V, 3) with body motion d (B, V, 3) on front-aligned bodies (B, Vb, 3)
-        with normals: node features (B, V, 14) [u, G - nearest body vertex, d, its normal, pin, mass (g)], edge
-        features (B, 2E, 8) [E_ij, |E_ij|, E_ij^ARAP, |E_ij^ARAP|] (m), and the nearest body vertices."""
-        nn = nearest_body_vertex(G, body_vertices, body_normals)
+        with normals: node features (B, V, 14) [u, G - body point, d, its normal, pin, mass (g)] (u and the body point
+        as :meth:`body_query` reads them), edge features
+        (B, 2E, 8) [E_ij, |E_ij|, E_ij^ARAP, |E_ij^ARAP|] (m), and the body normals (B, V, 3) (:meth:`body_query`)."""
+        point, normal = self.body_query(G, body_vertices, body_normals)
         B, V, _ = G.shape
         pin = graph.pin_mask.to(G.dtype)[None, :, None].expand(B, V, 1)
         mass = graph.mass_g[None, :, None].expand(B, V, 1)
-        u = graph.binding.u[None].expand(B, V, 3)
-        node = torch.cat([u, G - nn.point, d, nn.normal, pin, mass], -1)
+        u = (graph.binding.u if self.p["body_query"] == "vertex" else graph.u_surface)[None].expand(B, V, 3)
+        node = torch.cat([u, G - point, d, normal, pin, mass], -1)
         rest = graph.rest_edges[None].expand(B, -1, 3)
         arap_e = G[:, graph.receivers] - G[:, graph.senders]
         edge = torch.cat([rest, rest.norm(dim=-1, keepdim=True), arap_e, arap_e.norm(dim=-1, keepdim=True)], -1)
-        return node, edge, nn
+        return node, edge, normal
+
+    def body_query(self, G, body_vertices, body_normals) -> tuple[torch.Tensor, torch.Tensor]:
+        """The body point and outward normal PEN sees at each vertex of G (B, V, 3) m: the nearest body vertex
+        and its normal (``body_query`` "vertex"), or the closest point of the body's outer surface and the
+        distance field's direction there ("surface": both continuous over the garment)."""
+        if self.p["body_query"] == "vertex":
+            nn = nearest_body_vertex(G, body_vertices, body_normals)
+            return nn.point, nn.normal
+        sp = closest_body_point(G, body_vertices, self.body.faces, outer_faces=self.body.outer_faces)
+        return sp.point, sp.normal
 
     def pen(self, graph: GarmentGraph, G, d, body_vertices, body_normals, betas, geometry=None) -> tuple[torch.Tensor, torch.Tensor]:
         """PEN's corrected garment G + delta (B, V, 3) and delta, for ARAP results G (B, V, 3), body motion
         d (B, V, 3), front-aligned bodies (B, Vb, 3) with normals, and body shapes betas (B, S);
         ``geometry``: :meth:`encode` of the garment and body shape when already computed."""
-        node, edge, nn = self.features(graph, G, d, body_vertices, body_normals)
+        node, edge, normal = self.features(graph, G, d, body_vertices, body_normals)
         geometry = self.encode(graph, betas) if geometry is None else geometry
         index = graph.binding.nu[None].expand(G.shape[0], -1)  # each vertex's canonical closest body vertex: its body feature
-        delta, _ = self.net(node, edge, graph.senders, graph.receivers, graph.template, None, index, nn.normal, geometry)
+        delta, _ = self.net(node, edge, graph.senders, graph.receivers, graph.template, None, index, normal, geometry)
         return G + delta, delta
 
     def input_statistics(self, n_items: int = 64) -> tuple[torch.Tensor, ...]:

@@ -368,6 +368,47 @@ def test_diagnostic_term_balance_on_a_small_garment(body_lowres):
         assert set(left) == set(rows) - {name} and all(torch.isclose(v, torch.tensor(rows[k]["value"])) for k, v in left.items())
 
 
+def test_surface_body_query_gives_pen_continuous_body_points_and_outward_normals(body_lowres):
+    """body_query "surface": the body point PEN sees moves with the garment (no jumps between the body
+    vertices of a coarse body, as the nearest vertex makes), u is the template's offset from the canonical
+    surface, and (x - point) . normal is the signed distance (the normal points out, inside or not)."""
+    from drapebench.garments import make_garment
+    from methods.gensim.method import garment_graph
+
+    garment = make_garment("tshirt", body_lowres, resolution=0.025)
+    graph = garment_graph(garment, body_lowres, Material())
+    x = graph.template[None]
+    body = body_lowres.v_template[None].to(x.dtype)
+    normals = vertex_normals(body, body_lowres.faces)
+    e = graph.topology.edges
+    jump = {}
+    for query in ("surface", "vertex"):
+        m = methods_get({**TINY, "body_query": query})
+        m.bind(body_lowres, Material())
+        point, normal = m.body_query(x, body, normals)
+        jump[query] = ((point[0, e[:, 0]] - point[0, e[:, 1]]).norm(dim=-1) / (x[0, e[:, 0]] - x[0, e[:, 1]]).norm(dim=-1)).quantile(0.99)
+        assert torch.allclose(normal.norm(dim=-1), torch.ones(1), atol=1e-5)
+    assert jump["surface"] < 3.0 < jump["vertex"]
+    from drapebench.geometry.sdf import signed_distance
+
+    m = methods_get({**TINY, "body_query": "surface"})
+    m.bind(body_lowres, Material())
+    x = torch.where(torch.arange(len(graph.template))[:, None] % 2 == 0, graph.template - 1.2 * graph.u_surface, graph.template)[None]
+    point, normal = m.body_query(x, body, normals)  # half the vertices inside the body
+    sd = signed_distance(x, body, body_lowres.faces, outer_faces=body_lowres.outer_faces)
+    assert (sd < 0).float().mean() > 0.4 and torch.allclose(((x - point) * normal).sum(-1), sd, atol=1e-5)
+    u_surface = graph.template - closest_canonical(graph, body_lowres)
+    assert torch.allclose(graph.u_surface, u_surface) and not torch.allclose(graph.u_surface, graph.binding.u)
+
+
+def closest_canonical(graph, body):
+    """The closest points (V, 3) of the canonical body's outer surface to the graph's template."""
+    from drapebench.geometry.sdf import closest_body_point
+
+    canonical = body.shaped(graph.betas[None, : body.n_betas])[0]
+    return closest_body_point(graph.template[None], canonical, body.faces, outer_faces=body.outer_faces).point[0]
+
+
 def methods_get(cfg):
     import methods
 
