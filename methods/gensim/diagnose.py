@@ -2,13 +2,16 @@
 imprecision costs, under the configured reading of the paper and under the reading as printed.
 
 Run: python -m methods.gensim.diagnose [--garment skirt] [--motion random] [--checkpoint PATH] [--set key=value ...]
+     python -m methods.gensim.diagnose --compare <gensim_arap run> <gensim run>
 
 Per term (SI units: m, kg, J; each term per frame, as the training loss weighs it): its value, and the
 median / p99 over vertices of |d term / d x_i| (per m) at the ARAP result, so the pull of each term on one
 vertex can be compared (gravity's is gamma_4 m_i g). ``noise`` is the change of the whole loss when smooth
 random noise of RMS 0.3 mm is added to the ARAP result (what a network's imprecision costs), ``drop`` its
 change when every free vertex drops 10 mm (what gravity offers). With ``--checkpoint`` (a trained gensim
-checkpoint of the same parameters) the terms are also printed at PEN's output.
+checkpoint of the same parameters) the terms are also printed at PEN's output. Then the roughness of PEN's
+node inputs under both ``body_query`` readings (:func:`input_roughness`). ``--compare ARAP_RUN PEN_RUN``
+instead prints where eps_e changes between two finished runs of one scene, by edge strain class.
 """
 
 from __future__ import annotations
@@ -103,6 +106,58 @@ def arap_health(method, garment, seq) -> dict[str, float]:
             "spike_max_mm": spike.max().item(), "frame_move_max_mm": move.max().item() if len(move) else 0.0}  # fmt: skip
 
 
+STRAIN_CLASSES = (0.0, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0, float("inf"))  # edge strain classes (%) of strain_change
+
+
+def strain_change(before: torch.Tensor, after: torch.Tensor, topology, classes=STRAIN_CLASSES) -> list[dict[str, float]]:
+    """Where eps_e changes between two drapes (T, V, 3) m of one garment (e.g. the ARAP stage and PEN's output),
+    by the edges' strain class in ``before`` (%, [lo, hi)): per class the share of edge samples, the mean change
+    of their strain (points) and its contribution to the change of eps_e (points; the rows sum to it)."""
+    from drapebench.geometry.ops import edge_lengths
+
+    def strain(x):
+        return (edge_lengths(x.double(), topology.edges) / topology.rest_edge_lengths.double() - 1.0).abs() * 100
+
+    s0, s1 = strain(before), strain(after)
+    rows = []
+    for lo, hi in zip(classes[:-1], classes[1:]):
+        m = (s0 >= lo) & (s0 < hi)
+        change = (s1 - s0)[m]
+        rows.append({"lo": lo, "hi": hi, "share": m.double().mean().item(), "mean_change": change.mean().item() if m.any() else 0.0,
+                     "eps_e_change": (change.sum() / s0.numel()).item()})  # fmt: skip
+    return rows
+
+
+FEATURE_GROUPS = {"u": slice(0, 3), "v (x - body point)": slice(3, 6), "d": slice(6, 9), "normal": slice(9, 12)}
+
+
+def input_roughness(method, graph, G: torch.Tensor, d: torch.Tensor, body_vertices, body_normals) -> dict[str, float]:
+    """How much PEN's 3-vector node inputs jump along the garment's edges, for ARAP results G (B, V, 3):
+    per group of :data:`FEATURE_GROUPS`, the mean |f_i - f_j| over edges divided by the norm of the feature's
+    std over vertices and frames (a smooth field: about the edge length over the garment's size)."""
+    node, _, _ = method.features(graph, G, d, body_vertices, body_normals)
+    i, j = graph.topology.edges[:, 0], graph.topology.edges[:, 1]
+    return {name: ((node[:, i, s] - node[:, j, s]).norm(dim=-1).mean() / node[..., s].reshape(-1, 3).std(0).norm()).item()
+            for name, s in FEATURE_GROUPS.items()}  # fmt: skip
+
+
+def compare_runs(arap_dir: str, pen_dir: str) -> str:
+    """:func:`strain_change` from the run ``arap_dir`` (gensim_arap) to the run ``pen_dir`` (gensim) of the same
+    garment and motion, over the frames after the transition, as text."""
+    from drapebench.results import read_prediction
+    from drapebench.trained_run import load_run
+
+    run = load_run(arap_dir)  # the scene (garment, motion) of both runs; nothing to load
+    n0 = run.seq.n_transition
+    before, after = (torch.from_numpy(read_prediction(Path(d) / "prediction.h5")[0][n0:]) for d in (arap_dir, pen_dir))
+    rows = strain_change(before, after, run.garment.topology)
+    lines = [f"eps_e change from {arap_dir} to {pen_dir}, by the first drape's edge strain (%):",
+             f"  {'strain class':<14}{'share':>8}{'mean change':>13}{'eps_e change':>14}"]  # fmt: skip
+    lines += [f"  {r['lo']:>5.0f} - {r['hi']:<6.0f}{r['share']:>8.3f}{r['mean_change']:>+13.3f}{r['eps_e_change']:>+14.3f}" for r in rows]
+    lines.append(f"  total eps_e change {sum(r['eps_e_change'] for r in rows):+.3f} points")
+    return "\n".join(lines)
+
+
 def report(method, graph, x, G, verts, normals, label: str) -> str:
     """The term table of :func:`term_balance` (and :func:`loss_changes` at the ARAP result) as text."""
     rows = term_balance(method, graph, x, G, verts, normals)
@@ -129,8 +184,13 @@ def main(argv=None) -> None:
     ap.add_argument("--body", default="anny_lowres")
     ap.add_argument("--checkpoint", help="a trained gensim checkpoint (.pt); its parameters replace --set")
     ap.add_argument("--arap", action="store_true", help="instead: the ARAP stage's strain and jumps on a held-out motion (--motion, e.g. kick)")
+    ap.add_argument("--compare", nargs=2, metavar=("ARAP_RUN", "PEN_RUN"),
+                    help="instead: where eps_e changes from a gensim_arap run to a gensim run of the same scene (run folders)")
     ap.add_argument("--set", nargs="*", default=[], help="method parameters key=value (YAML values), e.g. decoder=eq1")
     args = ap.parse_args(argv)
+    if args.compare:
+        print(compare_runs(*args.compare))
+        return
     import yaml
 
     fitted = yaml.safe_load(CONF.read_text())["params"]
@@ -162,6 +222,11 @@ def main(argv=None) -> None:
     printed.fabric = configured.fabric
     print(report(printed, graph, G, G, verts, normals, "at the ARAP result, Eq. 3 as printed (sum over edges, no dead zone, no Huber)"))
     print(report(configured, graph, G, G, verts, normals, f"at the ARAP result, as configured ({', '.join(f'{k}={configured.p[k]}' for k in PRINTED)})"))
+    for query in ("vertex", "surface"):
+        reading = methods.get("gensim")({**cfg, "body_query": query})
+        reading.bind(body, Material())
+        rough = input_roughness(reading, graph, G, d, verts, normals)
+        print(f"PEN's input roughness (mean jump along an edge / std), body_query {query}: " + ", ".join(f"{k} {v:.3f}" for k, v in rough.items()))
     if state is not None:
         configured.load_state_dict(state)
         with torch.no_grad():

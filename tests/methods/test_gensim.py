@@ -343,7 +343,7 @@ def test_a_fixed_training_body_makes_one_checkpoint_for_every_run_body(body_lowr
 
 
 def test_diagnostic_term_balance_on_a_small_garment(body_lowres):
-    from methods.gensim.diagnose import PRINTED, loss_changes, term_balance, training_frames
+    from methods.gensim.diagnose import PRINTED, input_roughness, loss_changes, term_balance, training_frames
 
     configured = methods_get(TINY)
     configured.bind(body_lowres, Material())
@@ -366,6 +366,28 @@ def test_diagnostic_term_balance_on_a_small_garment(body_lowres):
         dropped.fabric = configured.fabric
         left = dropped.terms(graph, G, G, verts, normals)
         assert set(left) == set(rows) - {name} and all(torch.isclose(v, torch.tensor(rows[k]["value"])) for k, v in left.items())
+    rough = {}
+    for query in ("vertex", "surface"):  # the closest surface point moves with the cloth, the nearest vertex jumps
+        reading = methods_get({**TINY, "body_query": query})
+        reading.bind(body_lowres, Material())
+        rough[query] = input_roughness(reading, graph, G, d, verts, normals)
+    assert all(0 < v < 1 for r in rough.values() for v in r.values())
+    assert rough["surface"]["u"] < 0.5 * rough["vertex"]["u"] and rough["surface"]["v (x - body point)"] < 0.5 * rough["vertex"]["v (x - body point)"]
+
+
+def test_strain_change_splits_the_change_of_eps_e_by_strain_class():
+    from methods.gensim.diagnose import strain_change
+
+    x, topo = _sheet(6, 0.1)
+    before = x[None].double()
+    after = before * torch.tensor([1.03, 1.0, 1.0], dtype=torch.float64)  # every edge along x 3 % longer
+    rows = strain_change(before, after, topo)
+    assert rows[0]["share"] == pytest.approx(1.0) and sum(r["share"] for r in rows) == pytest.approx(1.0)
+    eps = lambda y: ((torch.linalg.norm(y[:, topo.edges[:, 0]] - y[:, topo.edges[:, 1]], dim=-1) / topo.rest_edge_lengths - 1).abs().mean() * 100)  # noqa: E731
+    change = (eps(after) - eps(before)).item()
+    assert change > 0 and sum(r["eps_e_change"] for r in rows) == pytest.approx(change, abs=1e-9)
+    back = strain_change(after, before, topo)  # from the stretched sheet: its x and diagonal edges are no longer below 1 %
+    assert sum(r["eps_e_change"] for r in back) < 0 and back[0]["share"] < 1.0
 
 
 def test_surface_body_query_gives_pen_continuous_body_points_and_outward_normals(body_lowres):
