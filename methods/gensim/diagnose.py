@@ -9,7 +9,8 @@ median / p99 over vertices of |d term / d x_i| (per m) at the ARAP result, so th
 vertex can be compared (gravity's is gamma_4 m_i g). ``noise`` is the change of the whole loss when smooth
 random noise of RMS 0.3 mm is added to the ARAP result (what a network's imprecision costs), ``drop`` its
 change when every free vertex drops 10 mm (what gravity offers). With ``--checkpoint`` (a trained gensim
-checkpoint of the same parameters) the terms are also printed at PEN's output. Then the roughness of PEN's
+checkpoint of the same parameters) the terms are also printed at PEN's output, with where eps_e changes
+(:func:`strain_change`). Then the roughness of PEN's
 node inputs under both ``body_query`` readings (:func:`input_roughness`). ``--compare ARAP_RUN PEN_RUN``
 instead prints where eps_e changes between two finished runs of one scene, by edge strain class.
 """
@@ -150,9 +151,12 @@ def compare_runs(arap_dir: str, pen_dir: str) -> str:
     run = load_run(arap_dir)  # the scene (garment, motion) of both runs; nothing to load
     n0 = run.seq.n_transition
     before, after = (torch.from_numpy(read_prediction(Path(d) / "prediction.h5")[0][n0:]) for d in (arap_dir, pen_dir))
-    rows = strain_change(before, after, run.garment.topology)
-    lines = [f"eps_e change from {arap_dir} to {pen_dir}, by the first drape's edge strain (%):",
-             f"  {'strain class':<14}{'share':>8}{'mean change':>13}{'eps_e change':>14}"]  # fmt: skip
+    return strain_change_text(strain_change(before, after, run.garment.topology), f"eps_e change from {arap_dir} to {pen_dir}")
+
+
+def strain_change_text(rows: list[dict[str, float]], label: str) -> str:
+    """The rows of :func:`strain_change` as a text table under ``label``."""
+    lines = [f"{label}, by the first drape's edge strain (%):", f"  {'strain class':<14}{'share':>8}{'mean change':>13}{'eps_e change':>14}"]
     lines += [f"  {r['lo']:>5.0f} - {r['hi']:<6.0f}{r['share']:>8.3f}{r['mean_change']:>+13.3f}{r['eps_e_change']:>+14.3f}" for r in rows]
     lines.append(f"  total eps_e change {sum(r['eps_e_change'] for r in rows):+.3f} points")
     return "\n".join(lines)
@@ -233,6 +237,7 @@ def main(argv=None) -> None:
             x, delta = configured.pen(graph, G, d, verts, normals, torch.zeros(len(G), body.n_betas, dtype=body.dtype))
         moved = delta.norm(dim=-1).flatten() * 1e3
         print(report(configured, graph, x, G, verts, normals, f"at PEN's output (|delta| mean {moved.mean():.2f} mm, p99 {moved.quantile(0.99):.2f} mm)"))
+        print(strain_change_text(strain_change(G, x, graph.topology), "eps_e change from the ARAP stage to PEN's output"))
 
 
 if __name__ == "__main__":
