@@ -235,12 +235,17 @@ class GenSim(DrapingMethod):
 
     def _training_frames(self, seed: int):
         """Training garments (graphs) and items (garment index, betas, poses (1, J, 3), ARAP G (V, 3), d (V, 3),
-        reference drape (V, 3) or None): the ARAP stage of sampled frames of random motions on random body
+        reference drape (V, 3) or None): the ARAP stage of sampled frames of the training motions (``train.motions``) on random body
         shapes (and, when ``supervised``, their reference drapes), cached by content."""
         from drapebench.body import make_sequence
+        from drapebench.body.dataset import HELD_OUT_MOTIONS, TRAIN_MOTIONS
         from drapebench.garments import make_garment
 
         tp, body = self.p["train"], self.body
+        unknown = sorted(set(tp["motions"]) - {"random", *TRAIN_MOTIONS})
+        if not tp["motions"] or unknown:
+            raise ValueError(f"gensim: method.params.train.motions must name training motions ({', '.join(('random', *TRAIN_MOTIONS))}), "
+                             f"not {unknown or 'none'}; the held-out ones ({', '.join(HELD_OUT_MOTIONS)}) are the test")  # fmt: skip
         garments = []
         for kind, params in tp["garments"]:
             for s in tp["seeds"]:
@@ -267,7 +272,7 @@ class GenSim(DrapingMethod):
             betas = torch.zeros(body.n_betas, dtype=body.dtype)
             n = tp["n_shape_betas"]
             betas[:n] = torch.as_tensor(np.clip(rng.normal(0, tp["beta_std"], n), -tp["beta_clip"], tp["beta_clip"]), dtype=body.dtype)
-            seq = make_sequence("random", tp["n_frames"], seed=int(rng.integers(2**31)), betas=betas.tolist())
+            seq = make_sequence(tp["motions"][k % len(tp["motions"])], tp["n_frames"], seed=int(rng.integers(2**31)), betas=betas.tolist())
             frames = np.linspace(seq.n_transition, seq.n_frames - 1, tp["frames_per_sequence"]).round().astype(int)
             poses = seq.poses[frames].to(body.dtype)
             refs = self._reference_frames(garments[gi], seq, frames) if self.p["supervised"] else [None] * len(frames)

@@ -446,6 +446,22 @@ def test_unknown_parameters_are_named():
         methods.get("gensim")({"direction": "sideways"})
 
 
+def test_training_motions_are_checked_and_cycled_over_the_sequences(body_lowres, monkeypatch):
+    for motions in (["kick"], []):  # a held-out motion, or none
+        m = methods_get({**TINY, "train": {**TINY["train"], "motions": motions}})
+        m.bind(body_lowres, Material())
+        with pytest.raises(ValueError, match="train.motions must name training motions"):
+            m._training_frames(0)
+    import drapebench.body
+
+    calls, real = [], drapebench.body.make_sequence
+    monkeypatch.setattr(drapebench.body, "make_sequence", lambda name, *a, **k: calls.append(name) or real(name, *a, **k))
+    m = methods_get({**TINY, "train": {**TINY["train"], "motions": ["walk", "random"], "sequences": 3}})
+    m.bind(body_lowres, Material())
+    m._training_frames(12345)  # a fresh cache (tests/conftest.py): the frames are computed
+    assert calls == ["walk", "random", "walk"]
+
+
 def test_pen_displacement_is_measured_after_the_transition_and_not_for_the_arap_stage_alone():
     from drapebench.body import make_sequence
     from methods.base import DrapeResult
