@@ -10,9 +10,9 @@ vertex can be compared (gravity's is gamma_4 m_i g). ``noise`` is the change of 
 random noise of RMS 0.3 mm is added to the ARAP result (what a network's imprecision costs), ``drop`` its
 change when every free vertex drops 10 mm (what gravity offers). With ``--checkpoint`` (a trained gensim
 checkpoint of the same parameters) the terms are also printed at PEN's output, with where eps_e changes
-(:func:`strain_change`). Then the roughness of PEN's
-node inputs under both ``body_query`` readings (:func:`input_roughness`). ``--compare ARAP_RUN PEN_RUN``
-instead prints where eps_e changes between two finished runs of one scene, by edge strain class.
+(:func:`strain_change`); before that, the roughness of PEN's node inputs under both ``body_query`` readings
+(:func:`input_roughness`). ``--compare ARAP_RUN PEN_RUN`` instead prints where eps_e changes between two
+finished runs of one scene, by edge strain class.
 """
 
 from __future__ import annotations

@@ -120,8 +120,8 @@ class GenSim(DrapingMethod):
     def features(self, graph: GarmentGraph, G, d, body_vertices, body_normals):
         """PEN's inputs for ARAP results G (B, V, 3) with body motion d (B, V, 3) on front-aligned bodies (B, Vb, 3)
         with normals: node features (B, V, 14) [u, G - body point, d, its normal, pin, mass (g)] (u and the body point
-        as :meth:`body_query` reads them), edge features
-        (B, 2E, 8) [E_ij, |E_ij|, E_ij^ARAP, |E_ij^ARAP|] (m), and the body normals (B, V, 3) (:meth:`body_query`)."""
+        as :meth:`body_query` reads them), edge features (B, 2E, 8) [E_ij, |E_ij|, E_ij^ARAP, |E_ij^ARAP|] (m), and
+        the body normals (B, V, 3)."""
         point, normal = self.body_query(G, body_vertices, body_normals)
         B, V, _ = G.shape
         pin = graph.pin_mask.to(G.dtype)[None, :, None].expand(B, V, 1)
@@ -235,8 +235,8 @@ class GenSim(DrapingMethod):
 
     def _training_frames(self, seed: int):
         """Training garments (graphs) and items (garment index, betas, poses (1, J, 3), ARAP G (V, 3), d (V, 3),
-        reference drape (V, 3) or None): the ARAP stage of sampled frames of the training motions (``train.motions``) on random body
-        shapes (and, when ``supervised``, their reference drapes), cached by content."""
+        reference drape (V, 3) or None): the ARAP stage of sampled frames of the training motions (``train.motions``)
+        on random body shapes (and, when ``supervised``, their reference drapes), cached by content."""
         from drapebench.body import make_sequence
         from drapebench.body.dataset import HELD_OUT_MOTIONS, TRAIN_MOTIONS
         from drapebench.garments import make_garment
