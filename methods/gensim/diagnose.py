@@ -12,7 +12,8 @@ change when every free vertex drops 10 mm (what gravity offers). With ``--checkp
 checkpoint of the same parameters) the terms are also printed at PEN's output, with where eps_e changes
 (:func:`strain_change`); before that, the roughness of PEN's node inputs under both ``body_query`` readings
 (:func:`input_roughness`). ``--compare ARAP_RUN PEN_RUN`` instead prints where eps_e changes between two
-finished runs of one scene, by edge strain class.
+finished runs of one scene, by edge strain class, and eps_e of each part of the displacement between them
+(:func:`displacement_parts`: along the normals, tangential, and as an even offset).
 """
 
 from __future__ import annotations
@@ -129,6 +130,25 @@ def strain_change(before: torch.Tensor, after: torch.Tensor, topology, classes=S
     return rows
 
 
+def displacement_parts(before: torch.Tensor, after: torch.Tensor, topology) -> dict[str, float]:
+    """eps_e (%) of two drapes (T, V, 3) m of one garment and of ``before`` moved by each part of the displacement
+    ``after - before``: along ``before``'s vertex normals (``normal``), the tangential rest (``tangential``),
+    and the per-frame mean of the normal part applied uniformly (``uniform_normal``: the strain an even offset
+    of the surface alone adds); ``normal_mm`` is the mean signed normal part (mm, > 0 along the normals)."""
+    from drapebench.geometry.ops import edge_lengths, vertex_normals
+
+    x0, x1 = before.double(), after.double()
+    n = vertex_normals(x0, topology.faces)
+    d = x1 - x0
+    dn = (d * n).sum(-1, keepdim=True)
+
+    def eps(x):
+        return ((edge_lengths(x, topology.edges) / topology.rest_edge_lengths.double() - 1.0).abs().mean() * 100).item()
+
+    return {"before": eps(x0), "after": eps(x1), "normal": eps(x0 + dn * n), "tangential": eps(x1 - dn * n),
+            "uniform_normal": eps(x0 + dn.mean(-2, keepdim=True) * n), "normal_mm": dn.mean().item() * 1e3}  # fmt: skip
+
+
 FEATURE_GROUPS = {"u": slice(0, 3), "v (x - body point)": slice(3, 6), "d": slice(6, 9), "normal": slice(9, 12)}
 
 
@@ -143,15 +163,19 @@ def input_roughness(method, graph, G: torch.Tensor, d: torch.Tensor, body_vertic
 
 
 def compare_runs(arap_dir: str, pen_dir: str) -> str:
-    """:func:`strain_change` from the run ``arap_dir`` (gensim_arap) to the run ``pen_dir`` (gensim) of the same
-    garment and motion, over the frames after the transition, as text."""
+    """:func:`strain_change` and :func:`displacement_parts` from the run ``arap_dir`` (gensim_arap) to the run
+    ``pen_dir`` (gensim) of the same garment and motion, over the frames after the transition, as text."""
     from drapebench.results import read_prediction
     from drapebench.trained_run import load_run
 
     run = load_run(arap_dir)  # the scene (garment, motion) of both runs; nothing to load
     n0 = run.seq.n_transition
     before, after = (torch.from_numpy(read_prediction(Path(d) / "prediction.h5")[0][n0:]) for d in (arap_dir, pen_dir))
-    return strain_change_text(strain_change(before, after, run.garment.topology), f"eps_e change from {arap_dir} to {pen_dir}")
+    parts = displacement_parts(before, after, run.garment.topology)
+    return "\n".join([strain_change_text(strain_change(before, after, run.garment.topology), f"eps_e change from {arap_dir} to {pen_dir}"),
+                      f"eps_e by part of the displacement (%): before {parts['before']:.3f}, after {parts['after']:.3f}; "
+                      f"before + its normal part {parts['normal']:.3f} (mean {parts['normal_mm']:+.2f} mm along the normals; "
+                      f"as an even offset {parts['uniform_normal']:.3f}), + its tangential part {parts['tangential']:.3f}"])  # fmt: skip
 
 
 def strain_change_text(rows: list[dict[str, float]], label: str) -> str:

@@ -390,6 +390,28 @@ def test_strain_change_splits_the_change_of_eps_e_by_strain_class():
     assert sum(r["eps_e_change"] for r in back) < 0 and back[0]["share"] < 1.0
 
 
+def test_displacement_parts_separate_an_even_offset_of_a_curved_sheet_from_a_slide():
+    """A sheet rolled onto a cylinder of radius R: moving it 2 mm along its normals stretches the edges around
+    the cylinder by about 2 mm / R, and that strain is the normal part's; sliding it along the axis strains nothing."""
+    from methods.gensim.diagnose import displacement_parts
+
+    flat, topo = _sheet(12, 0.2)
+    R = 0.1
+    x, y = flat[:, 0].double(), flat[:, 1].double()
+    rolled = torch.stack([R * torch.sin(x / R), y, R * torch.cos(x / R)], -1)[None]  # lengths kept up to the chords
+    radial = torch.stack([torch.sin(x / R), torch.zeros_like(x), torch.cos(x / R)], -1)[None]
+    offset = rolled + 0.002 * radial
+    parts = displacement_parts(rolled, offset, topo)
+    assert abs(parts["normal_mm"]) == pytest.approx(2.0, rel=0.02)
+    assert parts["after"] - parts["before"] > 0.5  # the edges around the cylinder: +2 % each
+    added = parts["after"] - parts["before"]  # the grid's vertex normals tilt at its border: most, not all, of it is normal
+    assert parts["normal"] - parts["before"] > 0.8 * added and parts["uniform_normal"] - parts["before"] > 0.8 * added
+    assert parts["tangential"] - parts["before"] < 0.1 * added
+    slide = displacement_parts(rolled, rolled + torch.tensor([0.0, 0.01, 0.0], dtype=torch.float64), topo)
+    assert slide["normal_mm"] == pytest.approx(0.0, abs=1e-9) and slide["after"] == pytest.approx(slide["before"], abs=1e-9)
+    assert slide["normal"] == pytest.approx(slide["before"], abs=1e-9)
+
+
 def test_surface_body_query_gives_pen_continuous_body_points_and_outward_normals(body_lowres):
     """body_query "surface": the body point PEN sees moves with the garment (no jumps between the body
     vertices of a coarse body, as the nearest vertex makes), u is the template's offset from the canonical
