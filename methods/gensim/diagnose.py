@@ -87,7 +87,6 @@ def arap_health(method, garment, seq) -> dict[str, float]:
     edge strain (%), the largest strain of an edge between two handles (%: their targets, which ARAP keeps),
     the largest spike (mm: a vertex's offset from its 1-ring mean, against the template's, as a single
     pushed-out vertex makes) and the largest frame-to-frame move of a vertex (mm)."""
-    from drapebench.geometry.ops import edge_lengths
     from methods.gensim.method import garment_graph
 
     body = method.body
@@ -98,7 +97,7 @@ def arap_health(method, garment, seq) -> dict[str, float]:
     G, H, *_ = method.arap_stage(graph, betas, seq.poses.to(body.dtype))
     G, H = G[seq.n_transition :].double(), H[seq.n_transition :]
     topo, edges = graph.topology, graph.topology.edges
-    strain = (edge_lengths(G, edges) / topo.rest_edge_lengths.double() - 1.0).abs() * 100
+    strain = edge_strain(G, topo)
     both = H[:, edges[:, 0]] & H[:, edges[:, 1]]
     T = graph.template.double()[None]
     spike = ((G - ring_mean(G, topo)) - (T - ring_mean(T, topo))).norm(dim=-1) * 1e3
@@ -111,16 +110,18 @@ def arap_health(method, garment, seq) -> dict[str, float]:
 STRAIN_CLASSES = (0.0, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0, float("inf"))  # edge strain classes (%) of strain_change
 
 
+def edge_strain(x: torch.Tensor, topology) -> torch.Tensor:
+    """|l / l0 - 1| (%) of every edge of drapes x (..., V, 3) m, in float64: (..., E)."""
+    from drapebench.geometry.ops import edge_lengths
+
+    return (edge_lengths(x.double(), topology.edges) / topology.rest_edge_lengths.double() - 1.0).abs() * 100
+
+
 def strain_change(before: torch.Tensor, after: torch.Tensor, topology, classes=STRAIN_CLASSES) -> list[dict[str, float]]:
     """Where eps_e changes between two drapes (T, V, 3) m of one garment (e.g. the ARAP stage and PEN's output),
     by the edges' strain class in ``before`` (%, [lo, hi)): per class the share of edge samples, the mean change
     of their strain (points) and its contribution to the change of eps_e (points; the rows sum to it)."""
-    from drapebench.geometry.ops import edge_lengths
-
-    def strain(x):
-        return (edge_lengths(x.double(), topology.edges) / topology.rest_edge_lengths.double() - 1.0).abs() * 100
-
-    s0, s1 = strain(before), strain(after)
+    s0, s1 = edge_strain(before, topology), edge_strain(after, topology)
     rows = []
     for lo, hi in zip(classes[:-1], classes[1:]):
         m = (s0 >= lo) & (s0 < hi)
@@ -135,7 +136,7 @@ def displacement_parts(before: torch.Tensor, after: torch.Tensor, topology) -> d
     ``after - before``: along ``before``'s vertex normals (``normal``), the tangential rest (``tangential``),
     and the per-frame mean of the normal part applied uniformly (``uniform_normal``: the strain an even offset
     of the surface alone adds); ``normal_mm`` is the mean signed normal part (mm, > 0 along the normals)."""
-    from drapebench.geometry.ops import edge_lengths, vertex_normals
+    from drapebench.geometry.ops import vertex_normals
 
     x0, x1 = before.double(), after.double()
     n = vertex_normals(x0, topology.faces)
@@ -143,7 +144,7 @@ def displacement_parts(before: torch.Tensor, after: torch.Tensor, topology) -> d
     dn = (d * n).sum(-1, keepdim=True)
 
     def eps(x):
-        return ((edge_lengths(x, topology.edges) / topology.rest_edge_lengths.double() - 1.0).abs().mean() * 100).item()
+        return edge_strain(x, topology).mean().item()
 
     return {"before": eps(x0), "after": eps(x1), "normal": eps(x0 + dn * n), "tangential": eps(x1 - dn * n),
             "uniform_normal": eps(x0 + dn.mean(-2, keepdim=True) * n), "normal_mm": dn.mean().item() * 1e3}  # fmt: skip
