@@ -97,7 +97,7 @@ class EdgeUpdate(nn.Module):
         return e + self.rest(first)
 
 
-NORMAL_PARTS = ("abs", "softplus")
+NORMAL_PARTS = ("abs", "softplus", "relu")
 
 
 def local_frame_displacement(a: torch.Tensor, b: torch.Tensor, c: torch.Tensor, normal: torch.Tensor, scale: float, sharpness: float = 100.0,
@@ -105,7 +105,8 @@ def local_frame_displacement(a: torch.Tensor, b: torch.Tensor, c: torch.Tensor, 
     """Displacement (..., 3) m in the local frame (n, t1, t2) of the unit body normal n (..., 3):
     scale (m) x [f(a) n + b t1 + c t2] with f = ``normal_part``: "abs" |a| (Eq. 1's |rho|: its gradient is
     +-1 wherever a != 0) or "softplus" of the given ``sharpness`` (a smooth max(a, 0); its gradient vanishes
-    once a is a few 1/sharpness below 0). The normal component is >= 0, so it spans the half-space of Eq. 1
+    once a is a few 1/sharpness below 0) or "relu" max(a, 0) (exactly 0 for a <= 0, where its gradient is 0).
+    The normal component is >= 0, so it spans the half-space of Eq. 1
     (every direction D_hat with D_hat . n >= 0, any magnitude) and is linear in b, c at zero: it can leave
     zero displacement."""
     t1, t2 = tangent_basis(normal)
@@ -113,6 +114,8 @@ def local_frame_displacement(a: torch.Tensor, b: torch.Tensor, c: torch.Tensor, 
         along = a.abs()
     elif normal_part == "softplus":
         along = nn.functional.softplus(a, beta=sharpness)
+    elif normal_part == "relu":
+        along = a.clamp_min(0.0)
     else:
         raise ValueError(f"gensim normal_part must be one of {NORMAL_PARTS}, not {normal_part!r}")
     return scale * (along[..., None] * normal + b[..., None] * t1 + c[..., None] * t2)
@@ -150,9 +153,9 @@ class PEN(nn.Module):
             raise ValueError(f"gensim decoder must be 'eq1' or 'local', not {decoder!r}")
         if decoder_init not in ("default", "zero"):
             raise ValueError(f"gensim decoder_init must be 'default' or 'zero', not {decoder_init!r}")
-        if decoder == "local" and decoder_init == "zero" and normal_part == "abs":
-            raise ValueError("gensim decoder_init 'zero' with normal_part 'abs' would start the normal coefficient at a = 0, where |a| "
-                             "has no gradient, so PEN could never push outward; use normal_part 'softplus' or decoder_init 'default'")  # fmt: skip
+        if decoder == "local" and decoder_init == "zero" and normal_part != "softplus":
+            raise ValueError(f"gensim decoder_init 'zero' with normal_part {normal_part!r} would start the normal coefficient at a = 0, where "
+                             "it has no gradient, so PEN could never push outward; use normal_part 'softplus' or decoder_init 'default'")  # fmt: skip
         self.direction, self.magnitude_scale, self.decoder_kind = direction, magnitude_scale, decoder
         self.garment_encoder = PointNetEncoder(geometry)
         self.body_encoder = PointNetEncoder(geometry)

@@ -179,14 +179,16 @@ def test_abs_normal_part_keeps_its_gradient_where_softplus_loses_it():
     a = torch.full((100,), -1.0, requires_grad=True)  # a trained PEN's normal coefficient sat at -1.0 to -1.7
     b, c = torch.randn(2, 100)
     grads = {}
-    for mode in ("abs", "softplus"):
+    for mode in ("abs", "softplus", "relu"):
         delta = local_frame_displacement(a, b, c, n, 0.01, normal_part=mode)
-        assert ((delta * n).sum(-1) >= -1e-7).all()  # Eq. 1's half-space either way
+        assert ((delta * n).sum(-1) >= -1e-7).all()  # Eq. 1's half-space in every reading
         (g,) = torch.autograd.grad((delta * n).sum(), a)
         grads[mode] = g.abs().mean()
-    assert grads["abs"] > 1e-3 and grads["softplus"] < 1e-30  # softplus_100(-1): no way back to pushing outward
+        if mode == "relu":  # exactly no normal move for a <= 0, the rest tangential
+            assert (delta * n).sum(-1).abs().max() < 1e-7  # up to the tangent basis's rounding
+    assert grads["abs"] > 1e-3 and grads["softplus"] < 1e-30 and grads["relu"] == 0  # below 0: no way back to pushing outward
     with pytest.raises(ValueError, match="normal_part"):
-        local_frame_displacement(a, b, c, n, 0.01, normal_part="relu")
+        local_frame_displacement(a, b, c, n, 0.01, normal_part="square")
 
 
 def test_input_norm_standardises_pens_inputs_with_the_stored_statistics():
