@@ -74,6 +74,13 @@ def gensim_params(cfg: Mapping[str, Any] | None) -> dict:
         raise ValueError(f"gensim fabric_std must be positive, got {p['fabric_std']}")
     if p["restrain_huber"] is not None and not p["restrain_huber"] > 0:
         raise ValueError(f"gensim restrain_huber must be positive (sigmas) or null, got {p['restrain_huber']}")
+    from drapebench.body.dataset import HELD_OUT_MOTIONS, TRAIN_MOTIONS
+
+    motions = p["train"]["motions"]
+    unknown = sorted(set(motions) - {"random", *TRAIN_MOTIONS})
+    if not motions or unknown:
+        raise ValueError(f"gensim: method.params.train.motions must name training motions ({', '.join(('random', *TRAIN_MOTIONS))}), "
+                         f"not {unknown or 'none'}; the held-out ones ({', '.join(HELD_OUT_MOTIONS)}) are the test")  # fmt: skip
     if p["train"]["threads"] is not None and int(p["train"]["threads"]) < 1:
         raise ValueError(f"gensim train.threads must be >= 1 or null, got {p['train']['threads']}")
     return p
