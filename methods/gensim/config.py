@@ -40,7 +40,7 @@ METHOD_DEFAULTS = dict(
     direction="tangent",  # decoder eq1: tangent | paper (Eq. 1 as printed, b3 = (-b1 n1 - b2 n2) / n3)
     magnitude_scale=0.01,  # m: the local decoder's scale, or eq1's magnitude w = scale x softplus(raw)
     input_norm=True,  # standardise PEN's node and edge inputs by their mean and std over training frames
-    normal_part="abs",  # local decoder's normal coefficient: abs (|a|, Eq. 1's |rho|) | softplus (sharpness 100: its gradient dies below 0) | relu (max(a, 0))
+    normal_part="abs",  # local decoder's normal coefficient: abs (|a|, Eq. 1's |rho|) | softplus (sharpness 100: its gradient dies below 0) | relu (max(a, 0)) | square (a^2)
     body_query="surface",  # PEN's body point, normal and u: surface (closest outer-surface point) | vertex (nearest body vertex, as printed)
     decoder_init="default",  # local decoder's output layer: default (PyTorch's: starts at a few mm) | zero (starts at 0.07 mm)
     eps=-0.5,  # handle threshold on tau (Alg. 2)
@@ -61,7 +61,7 @@ METHOD_DEFAULTS = dict(
     supervised=False,  # gensim_l2: L2 to reference drapes + smoothness + collision (paper Table 2)
     train=TRAIN_DEFAULTS,
 )
-CHOICES = dict(stage=("full", "arap"), decoder=("local", "eq1"), decoder_init=("default", "zero"), normal_part=("abs", "softplus", "relu"), body_query=("vertex", "surface"), restrain_reduction=("mean", "sum"), restrain_offset=("dead_zone", "printed", "none"), direction=("tangent", "paper"), handle_side=("pushed", "printed"), pin_rule=("skinned", "normal"), bending_rest=("flat", "template"))
+CHOICES = dict(stage=("full", "arap"), decoder=("local", "eq1"), decoder_init=("default", "zero"), normal_part=("abs", "softplus", "relu", "square"), body_query=("vertex", "surface"), restrain_reduction=("mean", "sum"), restrain_offset=("dead_zone", "printed", "none"), direction=("tangent", "paper"), handle_side=("pushed", "printed"), pin_rule=("skinned", "normal"), bending_rest=("flat", "template"))
 
 
 def gensim_params(cfg: Mapping[str, Any] | None) -> dict:

@@ -97,7 +97,7 @@ class EdgeUpdate(nn.Module):
         return e + self.rest(first)
 
 
-NORMAL_PARTS = ("abs", "softplus", "relu")
+NORMAL_PARTS = ("abs", "softplus", "relu", "square")
 
 
 def local_frame_displacement(a: torch.Tensor, b: torch.Tensor, c: torch.Tensor, normal: torch.Tensor, scale: float, sharpness: float = 100.0,
@@ -105,8 +105,9 @@ def local_frame_displacement(a: torch.Tensor, b: torch.Tensor, c: torch.Tensor, 
     """Displacement (..., 3) m in the local frame (n, t1, t2) of the unit body normal n (..., 3):
     scale (m) x [f(a) n + b t1 + c t2] with f = ``normal_part``: "abs" |a| (Eq. 1's |rho|: its gradient is
     +-1 wherever a != 0) or "softplus" of the given ``sharpness`` (a smooth max(a, 0); its gradient vanishes
-    once a is a few 1/sharpness below 0) or "relu" max(a, 0) (exactly 0 for a <= 0, where its gradient is 0).
-    The normal component is >= 0, so it spans the half-space of Eq. 1
+    once a is a few 1/sharpness below 0) or "relu" max(a, 0) (exactly 0 for a <= 0, where its gradient is 0)
+    or "square" a^2 (gradient 2a on both sides of 0, so noise of spread s in a around 0 moves the cloth out by
+    s^2, not by s). The normal component is >= 0, so it spans the half-space of Eq. 1
     (every direction D_hat with D_hat . n >= 0, any magnitude) and is linear in b, c at zero: it can leave
     zero displacement."""
     t1, t2 = tangent_basis(normal)
@@ -116,6 +117,8 @@ def local_frame_displacement(a: torch.Tensor, b: torch.Tensor, c: torch.Tensor, 
         along = nn.functional.softplus(a, beta=sharpness)
     elif normal_part == "relu":
         along = a.clamp_min(0.0)
+    elif normal_part == "square":
+        along = a.square()
     else:
         raise ValueError(f"gensim normal_part must be one of {NORMAL_PARTS}, not {normal_part!r}")
     return scale * (along[..., None] * normal + b[..., None] * t1 + c[..., None] * t2)
