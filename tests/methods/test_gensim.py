@@ -179,16 +179,26 @@ def test_abs_normal_part_keeps_its_gradient_where_softplus_loses_it():
     a = torch.full((100,), -1.0, requires_grad=True)  # a trained PEN's normal coefficient sat at -1.0 to -1.7
     b, c = torch.randn(2, 100)
     grads = {}
-    for mode in ("abs", "softplus", "relu"):
+    for mode in ("abs", "softplus", "relu", "square"):
         delta = local_frame_displacement(a, b, c, n, 0.01, normal_part=mode)
         assert ((delta * n).sum(-1) >= -1e-7).all()  # Eq. 1's half-space in every reading
         (g,) = torch.autograd.grad((delta * n).sum(), a)
         grads[mode] = g.abs().mean()
         if mode == "relu":  # exactly no normal move for a <= 0, the rest tangential
             assert (delta * n).sum(-1).abs().max() < 1e-7  # up to the tangent basis's rounding
-    assert grads["abs"] > 1e-3 and grads["softplus"] < 1e-30 and grads["relu"] == 0  # below 0: no way back to pushing outward
+    assert grads["abs"] > 1e-3 and grads["square"] > 1e-3  # below 0: a way back to pushing outward
+    assert grads["softplus"] < 1e-30 and grads["relu"] == 0  # below 0: none
     with pytest.raises(ValueError, match="normal_part"):
-        local_frame_displacement(a, b, c, n, 0.01, normal_part="square")
+        local_frame_displacement(a, b, c, n, 0.01, normal_part="cube")
+
+
+def test_square_normal_part_turns_noise_around_zero_into_less_outward_push_than_abs():
+    n = _random_normals(4000)
+    a = 0.1 * torch.randn(4000, generator=torch.Generator().manual_seed(0))  # a coefficient that should be 0, with noise
+    b = c = torch.zeros(4000)
+    push = {mode: (local_frame_displacement(a, b, c, n, 0.01, normal_part=mode) * n).sum(-1).mean() for mode in ("abs", "square")}
+    assert push["abs"] == pytest.approx(0.01 * 0.1 * (2 / torch.pi) ** 0.5, rel=0.05)  # |a|: the noise's spread, outward
+    assert push["square"] == pytest.approx(0.01 * 0.1**2, rel=0.1)  # a^2: its variance, ten times less here
 
 
 def test_input_norm_standardises_pens_inputs_with_the_stored_statistics():
