@@ -267,7 +267,8 @@ class GenSim(DrapingMethod):
             betas = torch.zeros(body.n_betas, dtype=body.dtype)
             n = tp["n_shape_betas"]
             betas[:n] = torch.as_tensor(np.clip(rng.normal(0, tp["beta_std"], n), -tp["beta_clip"], tp["beta_clip"]), dtype=body.dtype)
-            seq = make_sequence(tp["motions"][k % len(tp["motions"])], tp["n_frames"], seed=int(rng.integers(2**31)), betas=betas.tolist())
+            motion = tp["motions"][(gi * tp["sequences"] + k) % len(tp["motions"])]  # the list cycles over every garment's sequences
+            seq = make_sequence(motion, tp["n_frames"], seed=int(rng.integers(2**31)), betas=betas.tolist())
             frames = np.linspace(seq.n_transition, seq.n_frames - 1, tp["frames_per_sequence"]).round().astype(int)
             poses = seq.poses[frames].to(body.dtype)
             refs = self._reference_frames(garments[gi], seq, frames) if self.p["supervised"] else [None] * len(frames)

@@ -483,10 +483,10 @@ def test_training_motions_are_checked_and_cycled_over_the_sequences(body_lowres,
 
     calls, real = [], drapebench.body.make_sequence
     monkeypatch.setattr(drapebench.body, "make_sequence", lambda name, *a, **k: calls.append(name) or real(name, *a, **k))
-    m = methods_get({**TINY, "train": {**TINY["train"], "motions": ["walk", "random"], "sequences": 3}})
+    m = methods_get({**TINY, "train": {**TINY["train"], "motions": ["walk", "random"], "sequences": 3, "resolutions": [0.03, 0.035]}})
     m.bind(body_lowres, Material())
     m._training_frames(12345)  # a fresh cache (tests/conftest.py): the frames are computed
-    assert calls == ["walk", "random", "walk"]
+    assert calls == ["walk", "random", "walk", "random", "walk", "random"]  # the list cycles on from one garment to the next
 
 
 def test_pen_displacement_is_measured_after_the_transition_and_not_for_the_arap_stage_alone():
