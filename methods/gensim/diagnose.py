@@ -10,10 +10,12 @@ vertex can be compared (gravity's is gamma_4 m_i g). ``noise`` is the change of 
 random noise of RMS 0.3 mm is added to the ARAP result (what a network's imprecision costs), ``drop`` its
 change when every free vertex drops 10 mm (what gravity offers). With ``--checkpoint`` (a trained gensim
 checkpoint of the same parameters) the terms are also printed at PEN's output, with where eps_e changes
-(:func:`strain_change`); before that, the roughness of PEN's node inputs under both ``body_query`` readings
+(:func:`strain_change`) and without PEN's move along the body normal on vertices farther than
+:data:`FAR_FROM_BODY` from the body; before that, the roughness of PEN's node inputs under both ``body_query`` readings
 (:func:`input_roughness`). ``--compare ARAP_RUN PEN_RUN`` instead prints where eps_e changes between two
 finished runs of one scene, by edge strain class, and eps_e of each part of the displacement between them
-(:func:`displacement_parts`: along the normals, tangential, and as an even offset).
+(:func:`displacement_parts`: along the normals, tangential, and as an even offset), and the move along the
+normals by the first run's signed body distance (:func:`normal_push_by_distance`).
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ import numpy as np
 import torch
 
 from drapebench.diagnose import term_table
+from drapebench.geometry.sdf import signed_distance
 from drapebench.geometry.ops import ring_mean
 
 CONF = Path(__file__).resolve().parents[2] / "conf" / "method" / "gensim.yaml"  # its fitted mu_fabric, sigma_fabric
@@ -150,6 +153,27 @@ def displacement_parts(before: torch.Tensor, after: torch.Tensor, topology) -> d
             "uniform_normal": eps(x0 + dn.mean(-2, keepdim=True) * n), "normal_mm": dn.mean().item() * 1e3}  # fmt: skip
 
 
+FAR_FROM_BODY = 0.01  # m: beyond it Eq. 8's collision term (3 mm margin) does not act on a vertex
+DISTANCE_CLASSES_MM = (float("-inf"), 0.0, 3.0, 10.0, 20.0, float("inf"))  # body distance classes (mm) of normal_push_by_distance
+
+
+def normal_push_by_distance(before: torch.Tensor, after: torch.Tensor, topology, distance_mm: torch.Tensor,
+                            classes=DISTANCE_CLASSES_MM) -> list[dict[str, float]]:  # fmt: skip
+    """The displacement ``after - before`` (T, V, 3) m along ``before``'s vertex normals, by the class of
+    ``before``'s signed body distance ``distance_mm`` (T, V) (lo < d <= hi, mm): per class ``share`` (of
+    vertex-frames) and ``normal_mm`` (mean, > 0 outward; NaN for an empty class)."""
+    from drapebench.geometry.ops import vertex_normals
+
+    x0 = before.double()
+    dn = ((after.double() - x0) * vertex_normals(x0, topology.faces)).sum(-1) * 1e3
+    rows = []
+    for lo, hi in zip(classes[:-1], classes[1:]):
+        mask = (distance_mm > lo) & (distance_mm <= hi)
+        rows.append({"lo": lo, "hi": hi, "share": mask.double().mean().item(),
+                     "normal_mm": dn[mask].mean().item() if mask.any() else float("nan")})  # fmt: skip
+    return rows
+
+
 FEATURE_GROUPS = {"u": slice(0, 3), "v (x - body point)": slice(3, 6), "d": slice(6, 9), "normal": slice(9, 12)}
 
 
@@ -173,10 +197,16 @@ def compare_runs(arap_dir: str, pen_dir: str) -> str:
     n0 = run.seq.n_transition
     before, after = (torch.from_numpy(read_prediction(Path(d) / "prediction.h5")[0][n0:]) for d in (arap_dir, pen_dir))
     parts = displacement_parts(before, after, run.garment.topology)
+    body_vertices, _ = run.seq.posed_frames(run.body, n0, run.seq.n_frames, local=True)
+    local = before.double() - run.seq.trans[n0:, None].double()
+    distance = signed_distance(local.to(body_vertices.dtype), body_vertices, run.body.faces, outer_faces=run.body.outer_faces) * 1e3
+    by_distance = normal_push_by_distance(before, after, run.garment.topology, distance)
     return "\n".join([strain_change_text(strain_change(before, after, run.garment.topology), f"eps_e change from {arap_dir} to {pen_dir}"),
                       f"eps_e by part of the displacement (%): before {parts['before']:.3f}, after {parts['after']:.3f}; "
                       f"before + its normal part {parts['normal']:.3f} (mean {parts['normal_mm']:+.2f} mm along the normals; "
-                      f"as an even offset {parts['uniform_normal']:.3f}), + its tangential part {parts['tangential']:.3f}"])  # fmt: skip
+                      f"as an even offset {parts['uniform_normal']:.3f}), + its tangential part {parts['tangential']:.3f}",
+                      "mean move along the normals (mm) by the first run's body distance: "
+                      + ", ".join(f"({r['lo']:g}, {r['hi']:g}] mm {r['share'] * 100:.0f} % of vertices {r['normal_mm']:+.2f}" for r in by_distance)])  # fmt: skip
 
 
 def strain_change_text(rows: list[dict[str, float]], label: str) -> str:
@@ -263,6 +293,12 @@ def main(argv=None) -> None:
         moved = delta.norm(dim=-1).flatten() * 1e3
         print(report(configured, graph, x, G, verts, normals, f"at PEN's output (|delta| mean {moved.mean():.2f} mm, p99 {moved.quantile(0.99):.2f} mm)"))
         print(strain_change_text(strain_change(G, x, graph.topology), "eps_e change from the ARAP stage to PEN's output"))
+        far = signed_distance(G, verts, body.faces, outer_faces=body.outer_faces) > FAR_FROM_BODY
+        _, _, normal = configured.features(graph, G, d, verts, normals)
+        along = (delta * normal).sum(-1, keepdim=True)
+        kept = x - torch.where(far[..., None], along, torch.zeros_like(along)) * normal
+        print(report(configured, graph, kept, G, verts, normals, f"at PEN's output without its move along the body normal on the {far.double().mean() * 100:.0f} % of "
+                     f"vertices farther than {FAR_FROM_BODY * 1e3:g} mm from the body (mean {along[far].mean() * 1e3:+.2f} mm there)"))  # fmt: skip
 
 
 if __name__ == "__main__":

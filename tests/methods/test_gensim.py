@@ -424,6 +424,26 @@ def test_displacement_parts_separate_an_even_offset_of_a_curved_sheet_from_a_sli
     assert slide["normal"] == pytest.approx(slide["before"], abs=1e-9)
 
 
+def test_normal_push_by_distance_puts_each_move_in_its_distance_class():
+    """A rolled sheet whose half near the body (distance 1 mm) moves 2 mm out and whose far half (30 mm) moves
+    1 mm in: each class gets its own mean move along the normals, and the empty classes are NaN."""
+    from methods.gensim.diagnose import normal_push_by_distance
+
+    flat, topo = _sheet(12, 0.2)
+    R = 0.1
+    x, y = flat[:, 0].double(), flat[:, 1].double()
+    rolled = torch.stack([R * torch.sin(x / R), y, R * torch.cos(x / R)], -1)[None]
+    radial = torch.stack([torch.sin(x / R), torch.zeros_like(x), torch.cos(x / R)], -1)[None]
+    near = (y < y.median())[None]
+    moved = rolled + torch.where(near[..., None], 0.002, -0.001) * radial
+    rows = normal_push_by_distance(rolled, moved, topo, torch.where(near, 1.0, 30.0))
+    by_class = {(r["lo"], r["hi"]): r for r in rows}
+    assert by_class[(0.0, 3.0)]["normal_mm"] == pytest.approx(2.0, rel=0.05)  # outward where the sheet's normals point out
+    assert by_class[(20.0, float("inf"))]["normal_mm"] == pytest.approx(-1.0, rel=0.05)
+    assert by_class[(0.0, 3.0)]["share"] + by_class[(20.0, float("inf"))]["share"] == pytest.approx(1.0)
+    assert math.isnan(by_class[(3.0, 10.0)]["normal_mm"])
+
+
 def test_surface_body_query_gives_pen_continuous_body_points_and_outward_normals(body_lowres):
     """body_query "surface": the body point PEN sees moves with the garment (no jumps between the body
     vertices of a coarse body, as the nearest vertex makes), u is the template's offset from the canonical
