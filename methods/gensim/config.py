@@ -86,7 +86,11 @@ def gensim_params(cfg: Mapping[str, Any] | None) -> dict:
     return p
 
 
+OPTIMUM_SPACES = ("vertices", "half_space")
+OPTIMUM_DEFAULTS = dict(SOLVER_DEFAULTS, space="vertices")  # space: the free vertices | PEN's output space, Eq. 1's half-space of the body normal
+
+
 def optimum_params(cfg: Mapping[str, Any] | None) -> dict:
-    """The solver settings of ``gensim_optimum`` (``method.params.optimum``): :data:`drapebench.optimum.SOLVER_DEFAULTS`
-    updated by ``cfg``. Raises ValueError naming an unknown key or an invalid solver."""
-    return method_params("gensim_optimum", cfg, SOLVER_DEFAULTS, choices={"solver": SOLVERS})
+    """The settings of ``gensim_optimum`` (``method.params.optimum``): :data:`OPTIMUM_DEFAULTS` (the solver's
+    :data:`drapebench.optimum.SOLVER_DEFAULTS` and ``space``) updated by ``cfg``. Raises ValueError naming an unknown key or an invalid solver."""
+    return method_params("gensim_optimum", cfg, OPTIMUM_DEFAULTS, choices={"solver": SOLVERS, "space": OPTIMUM_SPACES})

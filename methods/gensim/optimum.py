@@ -1,7 +1,9 @@
 """``gensim_optimum``: the drape that minimises GenSim's own training loss (Eq. 9, the configured reading)
-directly over the garment vertices, frame by frame from the ARAP stage, with no network
-(:mod:`drapebench.optimum`): the best PEN could reach on each frame. Eq. 1's half-space is not imposed, so
-it bounds PEN from below. Nothing is learned."""
+directly, frame by frame from the ARAP stage, with no network (:mod:`drapebench.optimum`): the best PEN
+could reach on each frame. ``optimum.space`` "vertices" (default) minimises over the free vertices, Eq. 1's
+half-space not imposed, so it bounds PEN from below; "half_space" over PEN's output space, displacements
+scale x [a^2 n + b t1 + c t2] in the local frame of the body normal n PEN sees (every displacement with a
+non-negative part along n, as Eq. 1 allows). Nothing is learned."""
 
 from __future__ import annotations
 
@@ -15,8 +17,11 @@ from drapebench.optimum import optimise_sequence
 from methods.base import DrapeResult, FitReport
 from methods.gensim.config import optimum_params
 from methods.gensim.method import GenSim, garment_graph
+from methods.gensim.network import local_frame_displacement
 
 log = logging.getLogger("drapebench")
+
+HALF_SPACE_START = 0.1  # a at the start of the half-space optimum: a^2 x magnitude_scale = 0.1 mm along n (a^2's gradient is 0 at a = 0)
 
 
 class GensimOptimum(GenSim):
@@ -48,12 +53,17 @@ class GensimOptimum(GenSim):
         G, H, _, verts, normals, _ = self.arap_stage(graph, self.sequence_shape(seq), seq.poses)
         t2 = time.perf_counter()
 
+        o = self.o
+        drape_of = self._half_space_drape(graph, G, verts, normals) if o["space"] == "half_space" else lambda t, x: x
+
         def loss(t: int, window: torch.Tensor):
-            terms = self.terms(graph, window[-1:], G[t : t + 1], verts[t : t + 1], normals[t : t + 1])
+            terms = self.terms(graph, drape_of(t, window[-1:]), G[t : t + 1], verts[t : t + 1], normals[t : t + 1])
             return sum(terms.values()), terms
 
-        o = self.o
-        res = optimise_sequence(loss, G, 1, o["solver"], o["iterations"], o["lr"], o["history"])
+        start = G if o["space"] == "vertices" else torch.zeros_like(G).index_fill_(-1, torch.tensor([0]), HALF_SPACE_START)
+        res = optimise_sequence(loss, start, 1, o["solver"], o["iterations"], o["lr"], o["history"])
+        if o["space"] == "half_space":
+            res.vertices = torch.cat([drape_of(t, res.vertices[t : t + 1]) for t in range(len(G))]).detach()
         t3 = time.perf_counter()
         total = lambda terms: np.mean([sum(t.values()) for t in terms])  # noqa: E731
         log.info("gensim_optimum: loss per frame %.4g at the ARAP stage -> %.4g (mean over %d frames, %.1f evaluations each)",
@@ -61,3 +71,14 @@ class GensimOptimum(GenSim):
         x, G = self.to_world(seq, res.vertices, G)
         ms = lambda a, b: (b - a) * 1e3  # noqa: E731
         return DrapeResult(x, {"setup": ms(t0, t1), "arap": ms(t1, t2), "optimum": ms(t2, t3)}, {"arap": G, "handles": H})
+
+    def _half_space_drape(self, graph, G, verts, normals):
+        """(t, coefficients (1, V, 3) [a, b, c]) -> frame t's drape (1, V, 3) m: G[t] moved by PEN's decoder form
+        ``magnitude_scale`` x [a^2 n + b t1 + c t2] with n the body normal PEN sees at G (Eq. 1's half-space)."""
+        _, body_normal = self.body_query(G, verts, normals)
+        scale = self.p["magnitude_scale"]
+
+        def drape_of(t: int, c: torch.Tensor) -> torch.Tensor:
+            return G[t : t + 1] + local_frame_displacement(c[..., 0], c[..., 1], c[..., 2], body_normal[t : t + 1], scale, normal_part="square")
+
+        return drape_of

@@ -41,3 +41,25 @@ def test_the_optimum_lowers_gensims_loss_from_its_arap_stage(body_lowres):
     assert loss(aligned) < 0.9 * loss(G)
     with pytest.raises(ValueError, match="unknown gensim_optimum parameter"):
         methods.get("gensim_optimum")({"optimum": {"steps": 3}})
+
+
+def test_the_half_space_optimum_keeps_every_move_in_eq1s_half_space_and_lowers_the_loss(body_lowres):
+    g = make_garment("skirt", body_lowres, resolution=0.03)
+    seq = make_sequence("walk", 3, seed=0, transition=1)
+    free, half = (methods.get("gensim_optimum")({**FABRIC, "optimum": {"iterations": 15, "space": space}}) for space in ("vertices", "half_space"))
+    for m in (free, half):
+        m.fit(SimpleNamespace(body=body_lowres, material=Material()))
+    graph = garment_graph(g, body_lowres, Material())
+    G, _, _, verts, normals, _ = half.arap_stage(graph, torch.zeros(body_lowres.n_betas), seq.poses)
+    _, body_normal = half.body_query(G, verts, normals)
+    root = seq.transforms(body_lowres)[:, 0]
+    loss = lambda x: sum(half.terms(graph, x, G, verts, normals).values())  # noqa: E731
+    aligned = {}
+    for name, m in (("free", free), ("half", half)):
+        aligned[name] = (m.drape(g, seq).vertices - root[:, None, :3, 3]) @ root[:, :3, :3]
+    along = lambda x: ((x - G) * body_normal).sum(-1)  # noqa: E731
+    assert along(aligned["half"]).min() > -1e-5  # Eq. 1: nothing moves against the body normal
+    assert along(aligned["free"]).min() < -1e-4  # the free optimum does move some vertices inward
+    assert loss(aligned["half"]) < 0.9 * loss(G)
+    with pytest.raises(ValueError, match="space"):
+        methods.get("gensim_optimum")({"optimum": {"space": "tangent"}})
