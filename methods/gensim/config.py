@@ -40,6 +40,7 @@ METHOD_DEFAULTS = dict(
     direction="tangent",  # decoder eq1: tangent | paper (Eq. 1 as printed, b3 = (-b1 n1 - b2 n2) / n3)
     magnitude_scale=0.01,  # m: the local decoder's scale, or eq1's magnitude w = scale x softplus(raw)
     input_norm=True,  # standardise PEN's node and edge inputs by their mean and std over training frames
+    distance_input=False,  # add the signed body distance (G - body point) . n (m) to PEN's node inputs (not in the paper: v and n hold it as a product)
     normal_part="abs",  # local decoder's normal coefficient: abs (|a|, Eq. 1's |rho|) | softplus (sharpness 100: its gradient dies below 0) | relu (max(a, 0)) | square (a^2)
     body_query="surface",  # PEN's body point, normal and u: surface (closest outer-surface point) | vertex (nearest body vertex, as printed)
     decoder_init="default",  # local decoder's output layer: default (PyTorch's: starts at a few mm) | zero (starts at 0.07 mm)

@@ -96,7 +96,7 @@ class GenSim(DrapingMethod):
     def _new_net(self) -> PEN:
         p = self.p
         return PEN(p["latent"], p["geometry"], p["steps"], p["direction"], p["magnitude_scale"], p["decoder"], p["decoder_init"],
-                   p["input_norm"], p["normal_part"]).to(self.body.dtype)  # fmt: skip
+                   p["input_norm"], p["normal_part"], PEN.N_NODE + int(p["distance_input"])).to(self.body.dtype)  # fmt: skip
 
     def arap_stage(self, graph: GarmentGraph, betas: torch.Tensor, poses: torch.Tensor):
         """ARAP-deformed garment (T, V, 3), handle masks (T, V) bool and body motion d (T, V, 3), all in the
@@ -120,14 +120,16 @@ class GenSim(DrapingMethod):
     def features(self, graph: GarmentGraph, G, d, body_vertices, body_normals):
         """PEN's inputs for ARAP results G (B, V, 3) with body motion d (B, V, 3) on front-aligned bodies (B, Vb, 3)
         with normals: node features (B, V, 14) [u, G - body point, d, its normal, pin, mass (g)] (u and the body point
-        as :meth:`body_query` reads them), edge features (B, 2E, 8) [E_ij, |E_ij|, E_ij^ARAP, |E_ij^ARAP|] (m), and
+        as :meth:`body_query` reads them; with ``distance_input`` a 15th, (G - body point) . normal), edge features (B, 2E, 8) [E_ij, |E_ij|, E_ij^ARAP, |E_ij^ARAP|] (m), and
         the body normals (B, V, 3)."""
         point, normal = self.body_query(G, body_vertices, body_normals)
         B, V, _ = G.shape
         pin = graph.pin_mask.to(G.dtype)[None, :, None].expand(B, V, 1)
         mass = graph.mass_g[None, :, None].expand(B, V, 1)
         u = (graph.binding.u if self.p["body_query"] == "vertex" else graph.u_surface)[None].expand(B, V, 3)
-        node = torch.cat([u, G - point, d, normal, pin, mass], -1)
+        v = G - point
+        extra = [(v * normal).sum(-1, keepdim=True)] if self.p["distance_input"] else []
+        node = torch.cat([u, v, d, normal, pin, mass, *extra], -1)
         rest = graph.rest_edges[None].expand(B, -1, 3)
         arap_e = G[:, graph.receivers] - G[:, graph.senders]
         edge = torch.cat([rest, rest.norm(dim=-1, keepdim=True), arap_e, arap_e.norm(dim=-1, keepdim=True)], -1)
@@ -154,7 +156,7 @@ class GenSim(DrapingMethod):
         return G + delta, delta
 
     def input_statistics(self, n_items: int = 64) -> tuple[torch.Tensor, ...]:
-        """Mean and std of PEN's node (14,) and edge (8,) inputs over about ``n_items`` training frames spread over
+        """Mean and std of PEN's node (14 or 15,) and edge (8,) inputs over about ``n_items`` training frames spread over
         the training garments (what ``input_norm`` standardises the inputs with)."""
         picked = np.unique(np.linspace(0, len(self._items) - 1, min(n_items, len(self._items))).round().astype(int))
         nodes, edges = [], []

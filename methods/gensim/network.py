@@ -135,21 +135,23 @@ class PEN(nn.Module):
     ``normal_part`` (b1, b2 the tangent coefficients, rho the normal one, w = |delta|) and, by ``decoder_init``,
     PyTorch's default output layer ("default": a start at a few mm) or a zero one ("zero", with ``normal_part``
     "softplus" only: softplus(0) / 100 x scale = 0.07 mm along the normal; the output stays linear in the
-    layer's weights, so it leaves zero). With ``input_norm`` the
+    layer's weights, so it leaves zero). ``n_node``: node inputs per vertex (N_NODE, one more with GenSim's
+    ``distance_input``). With ``input_norm`` the
     node and edge inputs are standardised by the statistics given to :meth:`set_input_statistics`."""
 
     N_NODE = 3 * 4 + 2  # u, v, d, n, pin, mass
     N_EDGE = 8  # E_ij, |E_ij|, E_ij^ARAP, |E_ij^ARAP|
 
     def __init__(self, latent: int = 128, geometry: int = 32, steps: int = 8, direction: str = "tangent", magnitude_scale: float = 0.01,
-                 decoder: str = "local", decoder_init: str = "default", input_norm: bool = False, normal_part: str = "abs"):  # fmt: skip
+                 decoder: str = "local", decoder_init: str = "default", input_norm: bool = False, normal_part: str = "abs", n_node: int = N_NODE):  # fmt: skip
         super().__init__()
+        self.n_node = n_node
         if normal_part not in NORMAL_PARTS:
             raise ValueError(f"gensim normal_part must be one of {NORMAL_PARTS}, not {normal_part!r}")
         self.normal_part = normal_part
         self.input_norm = bool(input_norm)
         if self.input_norm:  # standardised node and edge inputs (set_input_statistics), saved with the weights
-            for name, n in (("node", self.N_NODE), ("edge", self.N_EDGE)):
+            for name, n in (("node", n_node), ("edge", self.N_EDGE)):
                 self.register_buffer(f"{name}_mean", torch.zeros(n))
                 self.register_buffer(f"{name}_std", torch.ones(n))
         if decoder not in ("eq1", "local"):
@@ -162,7 +164,7 @@ class PEN(nn.Module):
         self.direction, self.magnitude_scale, self.decoder_kind = direction, magnitude_scale, decoder
         self.garment_encoder = PointNetEncoder(geometry)
         self.body_encoder = PointNetEncoder(geometry)
-        self.node_encoder = mlp(2 * geometry + self.N_NODE, latent, latent)
+        self.node_encoder = mlp(2 * geometry + n_node, latent, latent)
         self.edge_encoder = mlp(self.N_EDGE, latent, latent)
         self.edge_updates = nn.ModuleList(EdgeUpdate(latent) for _ in range(steps))
         self.node_updates = nn.ModuleList(mlp(2 * latent, latent, latent) for _ in range(steps))
@@ -178,7 +180,7 @@ class PEN(nn.Module):
                 self.decoder[-1].bias[3] = -4.0
 
     def set_input_statistics(self, node_mean, node_std, edge_mean, edge_std, min_std: float = 1e-6) -> None:
-        """Store the mean and std of the node (N_NODE,) and edge (N_EDGE,) inputs that ``input_norm`` standardises
+        """Store the mean and std of the node (n_node,) and edge (N_EDGE,) inputs that ``input_norm`` standardises
         with (a std below ``min_std``, a constant input, counts as ``min_std``)."""
         if not self.input_norm:
             raise ValueError("PEN was built without input_norm: it has no input statistics to set")
