@@ -480,6 +480,29 @@ def test_surface_body_query_gives_pen_continuous_body_points_and_outward_normals
     assert on.abs().max() < 1e-6 and (surface_gap <= vertex_gap + 1e-6).all() and surface_gap.mean() < 0.9 * vertex_gap.mean()
 
 
+def test_distance_input_adds_the_signed_body_distance_to_pens_node_inputs(body_lowres):
+    from drapebench.garments import make_garment
+    from drapebench.geometry.sdf import signed_distance
+    from methods.gensim.method import garment_graph
+
+    graph = garment_graph(make_garment("skirt", body_lowres, resolution=0.03), body_lowres, Material())
+    body = body_lowres.v_template[None].to(graph.template.dtype)
+    normals = vertex_normals(body, body_lowres.faces)
+    x = graph.template[None] - 0.5 * graph.u_surface[None]  # some vertices inside the body, some out
+    d = torch.zeros_like(x)
+    nodes = {}
+    for flag in (False, True):
+        m = methods_get({**TINY, "body_query": "surface", "distance_input": flag})
+        m.bind(body_lowres, Material())
+        nodes[flag], edge, normal = m.features(graph, x, d, body, normals)
+        m.net = m._new_net()
+        _, delta = m.pen(graph, x, d, body, normals, torch.zeros(1, body_lowres.n_betas))  # the network takes the extra input
+        assert torch.isfinite(delta).all()
+    assert nodes[False].shape[-1] == 14 and nodes[True].shape[-1] == 15 and torch.equal(nodes[True][..., :14], nodes[False])
+    sd = signed_distance(x, body, body_lowres.faces, outer_faces=body_lowres.outer_faces)
+    assert torch.allclose(nodes[True][..., 14], sd, atol=1e-5)
+
+
 def methods_get(cfg):
     import methods
 
