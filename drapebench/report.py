@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 
 from drapebench.cache import PROJECT_ROOT, atomic_write
-from drapebench.results import METRICS, SUMMARY_COLUMNS, legend, metric_label
+from drapebench.results import METRICS, SUMMARY_COLUMNS, legend, metric_decimals, metric_label
 from drapebench.train.convergence import converged_seconds
 
 # table name -> (metrics shown, what the column groups are)
@@ -194,11 +194,12 @@ def unbalanced_seeds(df: pd.DataFrame, group: str) -> list[str]:
     return out
 
 
-def table(df: pd.DataFrame, metrics: list[str], decimals: int = 3, group: str = "garment") -> pd.DataFrame:
+def table(df: pd.DataFrame, metrics: list[str], decimals: int | None = None, group: str = "garment") -> pd.DataFrame:
     """Methods x (``group`` value, metric) table of formatted cells (groups: garments, or body shapes with
     ``group="shape"``). Runs of a cell that differ only in their seed give "mean ± std (n=k)" over the k seeds
     (each seed's runs averaged first); a cell of one seed gives its mean, "± std" where the runs carry a
-    ``<metric>_std`` column (the spread over frames)."""
+    ``<metric>_std`` column (the spread over frames). ``decimals``: for every metric, or None for each
+    metric's own (:func:`drapebench.results.metric_decimals`)."""
     if group not in df:
         raise KeyError(f"the runs have no {group!r} column (written by drapebench.experiment since the table needs it); rerun them")
     cells = {}
@@ -208,12 +209,13 @@ def table(df: pd.DataFrame, metrics: list[str], decimals: int = 3, group: str = 
                 continue
             mean, std, n = seed_stats(g, m)
             std_col = f"{m}_std"
+            d = metric_decimals(m) if decimals is None else decimals
             if n > 1:
-                cells[(method, garment, m)] = f"{mean:.{decimals}f} ± {std:.{decimals}f} (n={n})"
+                cells[(method, garment, m)] = f"{mean:.{d}f} ± {std:.{d}f} (n={n})"
             elif std_col in g and pd.notna(g[std_col].mean()):
-                cells[(method, garment, m)] = f"{g[m].mean():.{decimals}f} ± {g[std_col].mean():.{decimals}f}"
+                cells[(method, garment, m)] = f"{g[m].mean():.{d}f} ± {g[std_col].mean():.{d}f}"
             else:
-                cells[(method, garment, m)] = f"{g[m].mean():.{decimals}f}"
+                cells[(method, garment, m)] = f"{g[m].mean():.{d}f}"
     methods = list(dict.fromkeys(df["method"]))
     garments = list(dict.fromkeys(df[group]))
     cols = pd.MultiIndex.from_tuples([(g, metric_label(m)) for g in garments for m in metrics], names=[group, "metric"])
@@ -251,16 +253,17 @@ def commits_note(df: pd.DataFrame) -> str:
             + "; ".join(f"{m} {c}" for m, c in per.items()) + ".")
 
 
-def run_table(df: pd.DataFrame, failed: pd.DataFrame, metrics: list[str], decimals: int = 3) -> pd.DataFrame:
+def run_table(df: pd.DataFrame, failed: pd.DataFrame, metrics: list[str], decimals: int | None = None) -> pd.DataFrame:
     """One row per run (its scene in ``CASE_COLUMNS``, then ``metrics``), the failed runs' metric cells
-    "failed"; rows in the order of the runs."""
+    "failed"; rows in the order of the runs; ``decimals`` as :func:`table`'s."""
     cases = [c for c in CASE_COLUMNS if c in df or c in failed]
     if seed_ids(df).nunique() > 1:  # runs that differ only in their seed stay apart, named by it
         df = df.assign(seed=seed_ids(df))
         cases.append("seed")
     done = df.reindex(columns=cases + metrics).astype(object)
     for m in metrics:
-        done[m] = [f"{v:.{decimals}f}" if pd.notna(v) else "–" for v in df.get(m, pd.Series([float("nan")] * len(df)))]
+        d = metric_decimals(m) if decimals is None else decimals
+        done[m] = [f"{v:.{d}f}" if pd.notna(v) else "–" for v in df.get(m, pd.Series([float("nan")] * len(df)))]
     bad = failed.reindex(columns=cases).assign(**{m: "failed" for m in metrics}) if len(failed) else None
     out = pd.concat([done, bad]) if bad is not None else done
     return out.fillna("–").set_index("method")

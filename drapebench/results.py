@@ -21,12 +21,14 @@ SUMMARY_COLUMNS = ["method", "garment", "motion", "body", "reference", "shape", 
 
 @dataclass(frozen=True)
 class MetricInfo:
-    """What a metric column means: table label, unit, which direction is better, one-line meaning."""
+    """What a metric column means: table label, unit, which direction is better, one-line meaning, and the
+    decimals a table prints it with."""
 
     label: str
     unit: str
     better: str
     meaning: str
+    decimals: int = 3
 
 
 # The one catalogue of metric names, units and directions (full definitions: docs/metrics.md).
@@ -36,7 +38,7 @@ METRICS = {
     "eps_c": MetricInfo("ε_c (%)", "%", "lower, 0 ideal", "garment vertices inside the body"),
     "eps_c_nn": MetricInfo("ε_c nn (%)", "%", "lower", "vertices behind their nearest body vertex (GAPS code's count)"),
     "edge_mm": MetricInfo("edge (mm)", "mm", "lower", "mean edge-length change"),
-    "smoothness": MetricInfo("smooth. (m)", "m", "lower", "mean |cotangent Laplacian| of the positions"),
+    "smoothness": MetricInfo("smooth. (m)", "m", "lower", "mean |cotangent Laplacian| of the positions", decimals=5),
     "penetration_mm": MetricInfo("pen. (mm)", "mm", "lower", "mean depth of the vertices inside the body"),
     "jitter": MetricInfo("jitter (mm)", "mm", "lower, down to the reference's", "mean |second difference| of positions over frames"),
     "eps_c_canonical": MetricInfo("ε_c canon. (%)", "%", "lower, 0 ideal",
@@ -62,6 +64,13 @@ METRICS = {
     "hem_drop_mm": MetricInfo("hem drop (mm)", "mm", "neither: 0 holds, > 0 the skirt falls or stretches", "mean lowering of the hem (lowest boundary loop) by GenSim's PEN"),
     "setup_s": MetricInfo("setup (s)", "s", "lower", "one-off per-garment set-up inside the drape (not in ms/frame)"),
 }
+
+
+def metric_decimals(name: str) -> int:
+    """Decimals a table prints the metric column ``name`` (or its ``<metric>@<variant>``) with: 3 unless
+    :data:`METRICS` says otherwise."""
+    base = name.partition("@")[0]
+    return METRICS[base].decimals if base in METRICS else 3
 
 
 def metric_label(name: str) -> str:

@@ -20,6 +20,9 @@ def test_table_layout_and_cells():
     only_lbs = df.assign(eps_c_canonical=np.where(df["method"] == "lbs", 0.25, np.nan))  # a metric one method reports
     t = table(only_lbs, ["eps_c_canonical"])
     assert t.loc["lbs", ("tshirt", "ε_c canon. (%)")] == "0.250" and t.loc["pbs", ("tshirt", "ε_c canon. (%)")] == "–"
+    smooth = table(df.assign(smoothness=0.0028915), ["smoothness"])  # metres: printed to 10 um, not to 1 mm
+    assert smooth.loc["lbs", ("tshirt", "smooth. (m)")] == "0.00289"
+    assert table(df.assign(smoothness=0.0028915), ["smoothness"], decimals=3).loc["lbs", ("tshirt", "smooth. (m)")] == "0.003"
 
 
 def test_write_table_outputs_with_provenance(tmp_path):
