@@ -38,7 +38,7 @@ TABLES = {
     "gensim_table2": (["edge_mm", "smoothness", "eps_c", "vertex_error_mm"], "garment"),
     "gensim_ablation": (["eps_e", "edge_mm", "smoothness", "eps_c", "vertex_error_mm"], "garment"),
     "gensim_table1": (["eps_c", "vertex_error_mm"], "experiment"),
-    "gensim_pen": (["energy_j", "eps_c", "eps_e", "pen_mm", "pen_p99_mm"], "garment"),  # Fig. 2 / 11: gensim against gensim_arap
+    "gensim_pen": (["energy_j", "eps_c", "eps_e", "smoothness", "pen_mm", "pen_p99_mm"], "garment"),  # Fig. 2 / 11: gensim against gensim_arap
     "gensim_fig10": (["hem_drop_mm", "eps_e", "eps_c", "pen_mm"], "garment"),  # Fig. 10: V1 falls, V2 elongates, V3 holds
     "gaps_generalisation": (["eps_e", "eps_a", "eps_c", "vertex_error_mm", "energy_j"], "scene"),
     "stability": (["max_strain", "max_penetration_mm", "eps_c", "drift_mm"], None),  # one row per run
