@@ -145,7 +145,6 @@ class PEN(nn.Module):
     def __init__(self, latent: int = 128, geometry: int = 32, steps: int = 8, direction: str = "tangent", magnitude_scale: float = 0.01,
                  decoder: str = "local", decoder_init: str = "default", input_norm: bool = False, normal_part: str = "abs", n_node: int = N_NODE):  # fmt: skip
         super().__init__()
-        self.n_node = n_node
         if normal_part not in NORMAL_PARTS:
             raise ValueError(f"gensim normal_part must be one of {NORMAL_PARTS}, not {normal_part!r}")
         self.normal_part = normal_part
