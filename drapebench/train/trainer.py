@@ -28,6 +28,7 @@ import torch
 from drapebench.cache import cache_dir
 from drapebench.errors import TrainingDiverged
 from drapebench.progress import progress, progress_enabled
+from drapebench.results import git_commit
 from drapebench.schema import TrainConf
 from drapebench.train.checkpoint import load_state, remove_state, save_state, write_losses
 from drapebench.train.schedule import scheduled_lr
@@ -109,7 +110,8 @@ def train(objective: Objective, cfg: Mapping[str, Any] | TrainConf | None, log_d
     """Train ``objective`` under budget ``cfg`` (see the module docstring). Writes ``losses.csv`` (and
     ``evaluations.csv`` with :attr:`Objective.evaluate`) into ``log_dir`` when given, and a resumable checkpoint ``<name>_partial_<key>.pt`` into ``checkpoint_dir``
     (default: the cache's ``checkpoints``) every ``checkpoint_every`` steps, sealed with a SHA-256 sidecar like every
-    cached file (one that fails it is not resumed from, and neither is any under ``force=true``), removed when training ends.
+    cached file (one that fails it is not resumed from, and neither is any under ``force=true``; one written by another commit
+    is resumed with a warning naming both), removed when training ends.
     Raises :class:`drapebench.errors.TrainingDiverged` naming the step and the loss term(s) on a
     non-finite loss, and the step on a non-finite gradient (no step is taken on either)."""
     cfg = train_config(cfg)
@@ -139,6 +141,10 @@ def train(objective: Objective, cfg: Mapping[str, Any] | TrainConf | None, log_d
         ema, best_loss, best = state["ema"], state["best_loss"], state["best"]
         resumed = str(path)
         log.info("%s: resuming from step %d of %d (%s)", ob.name, step, total, path)
+        if state.get("commit") != git_commit():  # the key holds the configuration, not the code
+            log.warning("%s: the state at %s was written by commit %s, this process runs %s; if the training code changed "
+                        "between them, rerun with force=true (or delete that file) to train from step 0",
+                        ob.name, path, state.get("commit", "unknown"), git_commit())  # fmt: skip
     t0 = time.perf_counter()
     deadline = None if cfg.max_minutes is None else cfg.max_minutes * 60 - t_prev
     bar = progress(total=total, initial=step, desc=ob.name, unit="step")
@@ -187,7 +193,7 @@ def train(objective: Objective, cfg: Mapping[str, Any] | TrainConf | None, log_d
             if cfg.max_minutes is not None and np.mean(since_ckpt) < best_loss:
                 best_loss, best = float(np.mean(since_ckpt)), [t.detach().clone() for t in (ema or params)]
             since_ckpt = []
-            save_state(path, {"key": ob.key, "step": step, "history": history, "train_s": t_prev + elapsed, "params": params,
+            save_state(path, {"key": ob.key, "commit": git_commit(), "step": step, "history": history, "train_s": t_prev + elapsed, "params": params,
                               "opt": opt.state_dict(), "rng": rng, "torch_rng": torch.get_rng_state(), "order": order,
                               "ema": ema, "best_loss": best_loss, "best": best, "evaluations": evaluations})  # fmt: skip
             if log_dir is not None:

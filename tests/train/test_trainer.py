@@ -101,6 +101,22 @@ def test_a_damaged_partial_checkpoint_is_detected_by_its_checksum_and_not_resume
     assert not list((tmp_path / "ckpt").iterdir())  # state and seal removed at the end
 
 
+def test_resuming_a_state_written_by_another_commit_warns_naming_both(tmp_path, caplog, monkeypatch):
+    import drapebench.train.trainer as trainer
+
+    for run in ("same", "other"):
+        with pytest.raises(KeyboardInterrupt):
+            _run(tmp_path / run, interrupt_at=4)
+    with caplog.at_level(logging.WARNING, logger="drapebench"):
+        same, _ = _run(tmp_path / "same")
+    assert same.resumed_from is not None and "written by commit" not in caplog.text  # the same code: resumed quietly
+    monkeypatch.setattr(trainer, "git_commit", lambda: "f00d" * 10)
+    with caplog.at_level(logging.WARNING, logger="drapebench"):
+        res, _ = _run(tmp_path / "other")
+    assert res.resumed_from is not None  # resumed all the same: only the user knows whether the code changed
+    assert "written by commit" in caplog.text and "this process runs " + "f00d" * 10 in caplog.text and "force=true" in caplog.text
+
+
 def test_force_does_not_resume_from_a_partial_checkpoint(tmp_path):
     from drapebench.cache import forcing
 
