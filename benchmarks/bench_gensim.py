@@ -1,11 +1,12 @@
 """GenSim inference cost per frame on the CPU, by stage: motion-aware ARAP (handles, 10 ARAP steps with the
 collision push) and PEN, for a ~3k-vertex skirt on the full anny body (the paper: about 600 ms ARAP + 300 ms
-PEN for a 3000-vertex skirt on a GPU; issue 36's target: at most 50 ms for both on 2 CPU cores, unmet: see
-methods/gensim/README.md). Timing does not depend on trained values (PEN is freshly initialised).
+PEN for a 3000-vertex skirt on a GPU; the target here: at most 50 ms for both on 2 CPU cores, which
+methods/gensim/README.md compares with the bound below). Timing does not depend on trained values (PEN is
+freshly initialised).
 
 Prints the time per frame with torch's threads as set (every core), then with one thread: the work per frame
-in core-milliseconds. Their sum over the cores is a lower bound on the time per frame on those cores,
-however the frames and stages were spread over them.
+in core-milliseconds. That work divided by the number of cores bounds the time per frame on those cores from
+below, however the frames and stages were spread over them.
 
 Run: python benchmarks/bench_gensim.py
 """
