@@ -101,6 +101,16 @@ def dihedral_angles(x: torch.Tensor, hinges, hinge_opposite: torch.Tensor | None
     return torch.atan2(sin, cos)
 
 
+def ring_smooth(x: torch.Tensor, topology, rounds: int) -> torch.Tensor:
+    """(V, C): ``rounds`` rounds of replacing each vertex's values x (V, C) by their mean over its 1-ring with
+    the vertex itself, over a :class:`~drapebench.geometry.topology.Topology`'s rings (a low-pass filter)."""
+    owner, idx = topology.ring_owner, topology.ring_idx
+    deg = topology.ring_sizes.to(x.dtype)[:, None] + 1
+    for _ in range(rounds):
+        x = x.index_add(0, owner, x[idx]) / deg
+    return x
+
+
 def ring_mean(x: torch.Tensor, topology) -> torch.Tensor:
     """(B, V, C): the mean of each vertex's 1-ring neighbours' values x (B, V, C) (a vertex without
     neighbours gets 0) over a :class:`~drapebench.geometry.topology.Topology`'s rings."""

@@ -19,6 +19,7 @@ TRAIN_DEFAULTS = dict(
     hidden_init_std=0.1,  # GRU state drawn from N(0, std^2) in training
     beta_range=(2.0, 2.0, 2.0, 2.0),  # beta_k ~ U(-r_k, r_k) on the first len(beta_range) components (the code)
     output_adam_eps=1e-8,  # Adam's eps for the output layer (torch's default; the code's Keras default is 1e-7)
+    output_smoothing=0,  # rounds of 1-ring averaging of the output layer's gradient over the garment (0: none, the paper)
     exclude_motions=(),  # motions of the training dataset left out of GAPS's training windows
 )
 METHOD_DEFAULTS = dict(

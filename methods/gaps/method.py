@@ -16,7 +16,7 @@ import torch
 
 from drapebench.body.skinning import nearest_body_vertices, nearest_weights, skin_then_translate
 from drapebench.cache import content_hash
-from drapebench.geometry.ops import vertex_normals
+from drapebench.geometry.ops import ring_smooth, vertex_normals
 from drapebench.geometry.proximity import culled_body_vertices, nearest_body_vertex
 from drapebench.geometry.sdf import closest_body_point
 from drapebench.train import Objective, train, train_config
@@ -133,9 +133,21 @@ class GAPS(DrapingMethod):
         key = content_hash(self.p, budget, self.garment_key, dict(self.body.state_dict()), self.body.parents, data.material,
                            [(s.betas, s.poses, s.trans, s.fps) for s in seqs])  # fmt: skip
         objective = Objective("gaps", groups, len(self._windows), self._batch, self._loss_terms, key)
-        res = train(objective, budget, log_dir=log_dir)
+        rounds = int(tp["output_smoothing"])
+        hooks = [w.register_hook(lambda g: self._smooth_over_garment(g, rounds)) for w in self.net.out.parameters()] if rounds else []
+        try:
+            res = train(objective, budget, log_dir=log_dir)
+        finally:
+            for h in hooks:
+                h.remove()
         return FitReport(train_s=res.train_s, n_steps=res.n_steps, final_losses=res.history[-1] if res.history else {},
                          history=res.history, resumed_from=res.resumed_from)  # fmt: skip
+
+    def _smooth_over_garment(self, grad: torch.Tensor, rounds: int) -> torch.Tensor:
+        """The output layer's gradient (3V, H) or (3V,) smoothed over the garment's 1-rings ``rounds`` times
+        (``train.output_smoothing``): a step of the layer then moves the displacement field by a smoothed
+        gradient, without per-vertex noise."""
+        return ring_smooth(grad.reshape(len(self.template), -1), self.topology, rounds).reshape(grad.shape)
 
     def _training_sequences(self, seqs: list) -> list:
         """The training dataset's sequences less those of ``train.exclude_motions``; raises ValueError naming an

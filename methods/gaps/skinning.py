@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import torch
 
+from drapebench.geometry.ops import ring_smooth
+
 
 def rbf_average(garment_rest: torch.Tensor, body_rest: torch.Tensor, values: torch.Tensor, k: float = 0.25, chunk: int = 512) -> torch.Tensor:
     """GAPS body participation (paper Eq. 5-7) as an average: for garment vertex i with nearest-body distance
@@ -37,10 +39,5 @@ def rbf_shapedirs(garment_rest: torch.Tensor, body_rest: torch.Tensor, shapedirs
 def smoothed_weights(weights: torch.Tensor, topology, iterations: int = 10) -> torch.Tensor:
     """NCS: ``iterations`` rounds of replacing each vertex's weights by the mean over its 1-ring
     (itself included), then renormalising. (V, J) -> (V, J)."""
-    owner = topology.ring_owner
-    deg = topology.ring_sizes.to(weights.dtype)[:, None]
-    w = weights.clone()
-    for _ in range(iterations):
-        acc = w.clone().index_add(0, owner, w[topology.ring_idx])
-        w = acc / (deg + 1)
+    w = ring_smooth(weights, topology, iterations)
     return w / w.sum(1, keepdim=True)
