@@ -2,7 +2,7 @@
 its gradient per vertex (N), at the untrained skinning (network output zero); or, with ``--run``, the terms
 of a trained run's drape beside its untrained skinning's and those of the parts of its network's output (the
 static part, the part that varies with the motion, the output smoothed over each 1-ring), with the output's
-size and roughness, on the run's test sequence (or, with ``--training-motion``, on the first training
+size and roughness and how saturated its GRU trunk is, on the run's test sequence (or, with ``--training-motion``, on the first training
 sequence of that motion, at the run's body shape); or, with ``--pinned`` and a ``gaps_optimum`` run, how far
 from the run's reference its untrained skinning, its optimum and the optimum with the garment's pins held
 where the reference holds them are, at the pins and elsewhere (whether a pin term would close the gap).
@@ -33,6 +33,7 @@ from drapebench.geometry.ops import ring_mean
 from drapebench.garments import make_garment
 from drapebench.physics import Material
 from drapebench.train.trainer import Step
+from methods.gaps.method import root_velocity
 
 
 def budget_params(budget: str) -> dict:
@@ -88,6 +89,23 @@ def output_parts(m, seq) -> tuple[dict, dict]:
         return stats, {name: m.skinned(d.reshape(1, T, -1), betas, seq) for name, d in parts.items()}
 
 
+SATURATED = 0.99  # a GRU output unit with |y| above this is saturated (tanh's slope below 0.02)
+
+
+def trunk_state(m, seq) -> dict:
+    """What the output layer sees on ``seq``: the last GRU layer's outputs y (T, H) over the frames after the
+    transition (GRU state zero, as at inference): mean |y|, the fraction of saturated units (|y| >
+    ``SATURATED``), y's std over the frames (mean over units) and the std over the frames of the output
+    layer's W y in mm (mean over coordinates). A saturated trunk feeds the output layer a near-constant
+    vector, so the network's output hardly varies with the motion or the body shape."""
+    vel = root_velocity(seq)[None].to(m.body.dtype)
+    with torch.no_grad():
+        y = m.net.gru(m._inputs(m._sequence_betas(seq), seq.poses[None].to(m.body.dtype), vel))[0][0, int(seq.n_transition) :]
+        wy = y @ m.net.out.weight.T
+    return {"mean |y|": float(y.abs().mean()), "saturated": float((y.abs() > SATURATED).to(y.dtype).mean()),
+            "std over frames of y": float(y.std(0).mean()), "std over frames of W y (mm)": 1e3 * float(wy.std(0).mean())}  # fmt: skip
+
+
 def pinned_optimum(run_dir, n_frames: int | None = None, weight: float = 1e5) -> pd.DataFrame:
     """Distance (mm) to the reference of a ``gaps_optimum`` run's untrained skinning, of its optimum (read from
     the run's prediction.h5) and of GAPS's loss minimised with the garment's pins held at the reference's pin
@@ -129,13 +147,13 @@ def pinned_optimum(run_dir, n_frames: int | None = None, weight: float = 1e5) ->
     return pd.DataFrame(rows)
 
 
-def run_terms(run_dir, training_motion: str | None = None) -> tuple[pd.DataFrame, dict]:
+def run_terms(run_dir, training_motion: str | None = None) -> tuple[pd.DataFrame, dict, dict]:
     """GAPS's loss terms (its weights and normalisation, k_ext at the end of the ramp; mean per frame over the
     frames after the transition) of a gaps run's trained drape, of its untrained skinning and of the parts of
     the network's output (:func:`output_parts`), one row each, on the run's test sequence or, with
-    ``training_motion``, on the first ``train_small`` sequence of that motion with the run's body shape; and
-    the output's statistics. A trained drape whose total is above the untrained one's is worse by GAPS's own
-    objective."""
+    ``training_motion``, on the first ``train_small`` sequence of that motion with the run's body shape; the
+    output's statistics; and :func:`trunk_state`. A trained drape whose total is above the untrained one's is
+    worse by GAPS's own objective."""
     import dataclasses
 
     from drapebench.optimum import sequence_terms
@@ -157,7 +175,7 @@ def run_terms(run_dir, training_motion: str | None = None) -> tuple[pd.DataFrame
     for name, x in drapes.items():
         terms = pd.DataFrame(sequence_terms(loss, x, m.p["train"]["window"])[start:]).mean()
         rows.append({"drape": name, "sequence": seq.name, "total": terms.sum(), **terms.to_dict()})
-    return pd.DataFrame(rows), stats
+    return pd.DataFrame(rows), stats, trunk_state(m, seq)
 
 
 def main(argv=None) -> None:
@@ -179,10 +197,11 @@ def main(argv=None) -> None:
         print(pinned_optimum(a.run, a.frames).to_string(index=False, float_format=lambda v: f"{v:.2f}"))
         return
     if a.run:
-        table, stats = run_terms(a.run, a.training_motion)
+        table, stats, trunk = run_terms(a.run, a.training_motion)
         print("GAPS loss terms per frame (J per frame as the training normalises them), k_ext at the end of the ramp")
         print(table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
         print("The network's canonical displacements D: " + ", ".join(f"{k} {v:.2f}" for k, v in stats.items()))
+        print("Its last GRU layer's outputs y: " + ", ".join(f"{k} {v:.3g}" for k, v in trunk.items()))
         return
     table = diagnose(a.garment, a.body, a.budget, a.epoch, a.windows, a.seed)
     print(f"GAPS loss terms on {a.windows} training windows, {a.garment} on {a.body}, budget {a.budget}, untrained skinning")

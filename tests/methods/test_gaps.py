@@ -78,6 +78,23 @@ def test_weight_averaging_and_lr_decay(scene):
     assert all(x >= y for x, y in zip(lrs, lrs[1:]))
 
 
+def test_output_smoothing_gives_a_smoother_output(scene):
+    from drapebench.geometry.ops import ring_mean
+
+    body, g, seqs = scene
+
+    def roughness(m):  # mean |D - ring mean of D| of the output layer's bias field, per vertex (m)
+        d = m.net.out.bias.detach().reshape(1, g.n_vertices, 3)
+        return float((d - ring_mean(d, g.topology)).norm(dim=-1).mean()), float(d.norm(dim=-1).mean())
+
+    plain, _ = _fit(scene, seed=4, lr=1e-3, output_adam_eps=1.0)
+    smooth, _ = _fit(scene, seed=4, lr=1e-3, output_adam_eps=1.0, output_smoothing=10)
+    (r0, size0), (r1, size1) = roughness(plain), roughness(smooth)
+    assert size1 > 0.2 * size0  # it still learns a displacement
+    assert r1 / size1 < 0.5 * (r0 / size0), (r0, size0, r1, size1)
+    assert not smooth.net.out.bias._backward_hooks  # the hooks are removed after training
+
+
 def test_gradient_clipping(scene):
     _, a = _fit(scene, seed=2)
     _, b = _fit(scene, seed=2, grad_clip=1e-3)
@@ -280,3 +297,24 @@ def test_the_diagnostic_takes_the_network_output_apart(scene):
     assert rough["roughness (mm)"] > 3.0
     smooth = (parts["smoothed x3"] - m.untrained_drape(seq)).norm(dim=-1).mean()
     assert 1e3 * smooth < 0.5 * rough["mean |D| (mm)"]  # averaging over the 1-rings shrinks a random field
+
+
+def test_the_diagnostic_sees_a_saturated_trunk(scene):
+    """methods.gaps.diagnose.trunk_state: a fresh GRU is not saturated and follows the motion; one whose
+    candidate biases are pushed far out outputs +-1 whatever the frame, and its output layer sees a constant."""
+    from methods.gaps.diagnose import trunk_state
+
+    body, g, seqs = scene
+    m = _set_up(body, g, {})
+    with torch.no_grad():
+        m.net.out.weight.normal_(0.0, 1e-3)
+    fresh = trunk_state(m, seqs[0])
+    assert fresh["saturated"] == 0.0 and fresh["std over frames of y"] > 1e-4 and fresh["std over frames of W y (mm)"] > 1e-4
+    H = m.p["hidden"]
+    with torch.no_grad():
+        for layer in range(m.p["layers"]):
+            getattr(m.net.gru, f"bias_ih_l{layer}")[2 * H :] = 50.0  # the candidate state n = tanh(50 + ...)
+            getattr(m.net.gru, f"bias_ih_l{layer}")[H : 2 * H] = -50.0  # update gate z = 0: h = n
+    saturated = trunk_state(m, seqs[0])
+    assert saturated["saturated"] == 1.0 and saturated["mean |y|"] > 0.99
+    assert saturated["std over frames of W y (mm)"] < 1e-3 * fresh["std over frames of W y (mm)"]
