@@ -9,7 +9,7 @@ where the reference holds them are, at the pins and elsewhere (whether a pin ter
 
     python -m methods.gaps.diagnose --garment tshirt --body anny_lowres             # train=cpu's GAPS keys
     python -m methods.gaps.diagnose --garment tshirt --budget paper --epoch 100 --windows 16
-    python -m methods.gaps.diagnose --run multirun/<date>/<sweep>/<run> [--training-motion dance]
+    python -m methods.gaps.diagnose --run multirun/<date>/<sweep>/<run> [--training-motion dance | --optimum <gaps_optimum run>]
     python -m methods.gaps.diagnose --run multirun/<date>/<sweep>/<gaps_optimum run> --pinned [--frames 40]
 """
 
@@ -147,16 +147,18 @@ def pinned_optimum(run_dir, n_frames: int | None = None, weight: float = 1e5) ->
     return pd.DataFrame(rows)
 
 
-def run_terms(run_dir, training_motion: str | None = None) -> tuple[pd.DataFrame, dict, dict]:
+def run_terms(run_dir, training_motion: str | None = None, optimum_run=None) -> tuple[pd.DataFrame, dict, dict]:
     """GAPS's loss terms (its weights and normalisation, k_ext at the end of the ramp; mean per frame over the
     frames after the transition) of a gaps run's trained drape, of its untrained skinning and of the parts of
     the network's output (:func:`output_parts`), one row each, on the run's test sequence or, with
-    ``training_motion``, on the first ``train_small`` sequence of that motion with the run's body shape; the
-    output's statistics; and :func:`trunk_state`. A trained drape whose total is above the untrained one's is
-    worse by GAPS's own objective."""
+    ``training_motion``, on the first ``train_small`` sequence of that motion with the run's body shape, with
+    a row for the drape of ``optimum_run`` (a ``gaps_optimum`` run of the same scene) if given; the output's
+    statistics; and :func:`trunk_state`. A trained drape whose total is above the untrained one's is worse by
+    GAPS's own objective."""
     import dataclasses
 
     from drapebench.optimum import sequence_terms
+    from drapebench.results import read_prediction
     from drapebench.trained_run import load_run
 
     run = load_run(run_dir)
@@ -168,6 +170,13 @@ def run_terms(run_dir, training_motion: str | None = None) -> tuple[pd.DataFrame
             raise ValueError(f"train_small has no {training_motion!r} sequence; its motions: {sorted({s.motion for s in dataset})}")
         seq = dataclasses.replace(train[0], betas=seq.betas, _cache={})
     drapes = {"trained": m.drape(run.garment, seq).vertices, "untrained": m.untrained_drape(seq)}
+    if optimum_run is not None:
+        if training_motion is not None:
+            raise ValueError("--optimum scores the run's own test sequence; leave out --training-motion")
+        optimum = torch.as_tensor(read_prediction(f"{optimum_run}/prediction.h5")[0]).to(drapes["trained"].dtype)
+        if optimum.shape != drapes["trained"].shape:
+            raise ValueError(f"{optimum_run}'s drape {tuple(optimum.shape)} is not of {run_dir}'s scene {tuple(drapes['trained'].shape)}")
+        drapes["loss optimum"] = optimum
     stats, parts = output_parts(m, seq)
     drapes.update(parts)
     loss, start = m.window_loss(seq, m.p["train"]["kext_ramp_epochs"]), int(seq.n_transition)
@@ -188,6 +197,7 @@ def main(argv=None) -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--run", help="a gaps run folder: its trained drape's terms beside its untrained skinning's")
     ap.add_argument("--training-motion", help="with --run: score the first train_small sequence of this motion instead")
+    ap.add_argument("--optimum", help="with --run: a gaps_optimum run of the same scene, whose drape's terms are added")
     ap.add_argument("--pinned", action="store_true", help="with a gaps_optimum --run: its optimum with the pins held at the reference's")
     ap.add_argument("--frames", type=int, default=None, help="with --pinned: the first N frames only (default: all)")
     a = ap.parse_args(argv)
@@ -197,7 +207,7 @@ def main(argv=None) -> None:
         print(pinned_optimum(a.run, a.frames).to_string(index=False, float_format=lambda v: f"{v:.2f}"))
         return
     if a.run:
-        table, stats, trunk = run_terms(a.run, a.training_motion)
+        table, stats, trunk = run_terms(a.run, a.training_motion, a.optimum)
         print("GAPS loss terms per frame (J per frame as the training normalises them), k_ext at the end of the ramp")
         print(table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
         print("The network's canonical displacements D: " + ", ".join(f"{k} {v:.2f}" for k, v in stats.items()))

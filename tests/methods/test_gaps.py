@@ -318,3 +318,28 @@ def test_the_diagnostic_sees_a_saturated_trunk(scene):
     saturated = trunk_state(m, seqs[0])
     assert saturated["saturated"] == 1.0 and saturated["mean |y|"] > 0.99
     assert saturated["std over frames of W y (mm)"] < 1e-3 * fresh["std over frames of W y (mm)"]
+
+
+def test_the_diagnostic_scores_a_loss_optimum_drape_beside_the_run(scene, tmp_path, monkeypatch):
+    """methods.gaps.diagnose.run_terms with an optimum run: its drape gets a row of the same terms (here the
+    untrained drape written as the optimum's prediction scores as the untrained row); a drape of another
+    scene, or a training motion with it, is refused."""
+    import types
+
+    import drapebench.trained_run
+    from drapebench.results import write_prediction
+    from methods.gaps.diagnose import run_terms
+
+    body, g, seqs = scene
+    m = _set_up(body, g, {})
+    seq = seqs[0]
+    monkeypatch.setattr(drapebench.trained_run, "load_run", lambda run_dir: types.SimpleNamespace(method=m, seq=seq, garment=g))
+    write_prediction(tmp_path / "prediction.h5", m.untrained_drape(seq), g.faces)
+    table, _, _ = run_terms("run", optimum_run=tmp_path)
+    rows = table.set_index("drape")
+    assert rows.loc["loss optimum", "total"] == pytest.approx(rows.loc["untrained", "total"], rel=1e-4)
+    write_prediction(tmp_path / "prediction.h5", m.untrained_drape(seq)[:5], g.faces)
+    with pytest.raises(ValueError, match="is not of"):
+        run_terms("run", optimum_run=tmp_path)
+    with pytest.raises(ValueError, match="training-motion"):
+        run_terms("run", training_motion="walk", optimum_run=tmp_path)
