@@ -2,10 +2,12 @@
 its gradient per vertex (N), at the untrained skinning (network output zero); or, with ``--run``, the terms
 of a trained run's drape beside its untrained skinning's and those of the parts of its network's output (the
 static part, the part that varies with the motion, the output smoothed over each 1-ring), with the output's
-size and roughness and how saturated its GRU trunk is, on the run's test sequence (or, with ``--training-motion``, on the first training
-sequence of that motion, at the run's body shape); or, with ``--pinned`` and a ``gaps_optimum`` run, how far
-from the run's reference its untrained skinning, its optimum and the optimum with the garment's pins held
-where the reference holds them are, at the pins and elsewhere (whether a pin term would close the gap).
+size and roughness and how saturated its GRU trunk is, on the run's test sequence (or, with
+``--training-motion``, on the first training sequence of that motion, at the run's body shape; with
+``--optimum``, beside the drape of a ``gaps_optimum`` run of the same scene); or, with ``--pinned`` and a
+``gaps_optimum`` run, how far from the run's reference its untrained skinning, its optimum and the optimum
+with the garment's pins held where the reference holds them are, at the pins and elsewhere (whether a pin
+term would close the gap).
 
     python -m methods.gaps.diagnose --garment tshirt --body anny_lowres             # train=cpu's GAPS keys
     python -m methods.gaps.diagnose --garment tshirt --budget paper --epoch 100 --windows 16
