@@ -35,7 +35,6 @@ from drapebench.geometry.ops import ring_mean
 from drapebench.garments import make_garment
 from drapebench.physics import Material
 from drapebench.train.trainer import Step
-from methods.gaps.method import root_velocity
 
 
 def budget_params(budget: str) -> dict:
@@ -100,9 +99,8 @@ def trunk_state(m, seq) -> dict:
     ``SATURATED``), y's std over the frames (mean over units) and the std over the frames of the output
     layer's W y in mm (mean over coordinates). A saturated trunk feeds the output layer a near-constant
     vector, so the network's output hardly varies with the motion or the body shape."""
-    vel = root_velocity(seq)[None].to(m.body.dtype)
     with torch.no_grad():
-        y = m.net.gru(m._inputs(m._sequence_betas(seq), seq.poses[None].to(m.body.dtype), vel))[0][0, int(seq.n_transition) :]
+        y = m.net.gru(m.sequence_inputs(seq))[0][0, int(seq.n_transition) :]
         wy = y @ m.net.out.weight.T
     return {"mean |y|": float(y.abs().mean()), "saturated": float((y.abs() > SATURATED).to(y.dtype).mean()),
             "std over frames of y": float(y.std(0).mean()), "std over frames of W y (mm)": 1e3 * float(wy.std(0).mean())}  # fmt: skip

@@ -279,11 +279,15 @@ class GAPS(DrapingMethod):
         betas[0, : len(given)] = given.to(self.body.dtype)
         return betas
 
+    def sequence_inputs(self, seq) -> torch.Tensor:
+        """(1, T, S + 3J + 3): the network's input on ``seq`` (its betas, poses and root velocity)."""
+        vel = root_velocity(seq)[None].to(self.body.dtype)
+        return self._inputs(self._sequence_betas(seq), seq.poses[None].to(self.body.dtype), vel)
+
     def displacements(self, seq) -> torch.Tensor:
         """(1, T, 3V) m: the network's canonical displacements on ``seq`` (GRU state zero), no gradient."""
-        vel = root_velocity(seq)[None].to(self.body.dtype)
         with torch.no_grad():
-            return self.net(self._inputs(self._sequence_betas(seq), seq.poses[None].to(self.body.dtype), vel))[0]
+            return self.net(self.sequence_inputs(seq))[0]
 
     def forward_sequence(self, garment, seq, h0=None):
         """Differentiable drape (T, V, 3) and final hidden state, for tests and fine-tuning."""
