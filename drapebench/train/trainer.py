@@ -52,7 +52,8 @@ class Objective:
 
     name: label of the progress bar, messages and checkpoint files.
     param_groups: ``[{"params": [tensors], "lr_factor": f}, ...]``; each group learns at f x the scheduled rate,
-        with Adam's ``eps`` if the group gives one (else torch's 1e-8).
+        with Adam's ``eps`` if the group gives one (else torch's 1e-8); a group with a ``name`` has its gradient's
+        norm before clipping logged per step as ``grad_norm_<name>``.
     n_items: training items (e.g. windows of frames) in one epoch; batches are shuffled indices into them.
     batch: (item indices (b,), Step) -> a batch, whatever ``loss_terms`` takes.
     loss_terms: (batch, Step) -> {term name: scalar tensor}, each term already weighted; the loss is their sum.
@@ -121,6 +122,7 @@ def train(objective: Objective, cfg: Mapping[str, Any] | TrainConf | None, log_d
     steps_per_epoch = max(1, math.ceil(ob.n_items / cfg.batch_size))
     total = int(cfg.steps) if cfg.steps is not None else steps_per_epoch * int(cfg.epochs)
     opt = torch.optim.Adam([{"params": g["params"], "factor": g["lr_factor"], "eps": g.get("eps", 1e-8)} for g in ob.param_groups], lr=cfg.lr)
+    named = [(g["name"], g["params"]) for g in ob.param_groups if "name" in g]
     params = [p for g in opt.param_groups for p in g["params"]]
     path = Path(checkpoint_dir or cache_dir("checkpoints")) / f"{ob.name}_partial_{ob.key}.pt"
     rng = np.random.default_rng(cfg.seed)
@@ -167,6 +169,7 @@ def train(objective: Objective, cfg: Mapping[str, Any] | TrainConf | None, log_d
                                    "lower train.lr or the loss weights, or try another seed")  # fmt: skip
         opt.zero_grad(set_to_none=True)
         loss.backward()
+        group_norms = {f"grad_norm_{n}": _grad_norm(ps) for n, ps in named}
         grad_norm = torch.nn.utils.clip_grad_norm_(params, cfg.grad_clip or math.inf)  # the norm before clipping
         if not torch.isfinite(grad_norm):  # a finite loss can still have a non-finite gradient: never step on it
             raise TrainingDiverged(f"{ob.name}: non-finite gradient at step {step} (epoch {epoch}; loss {loss.item():.4g}); "
@@ -177,7 +180,7 @@ def train(objective: Objective, cfg: Mapping[str, Any] | TrainConf | None, log_d
             with torch.no_grad():
                 torch._foreach_lerp_(ema, [p.detach() for p in params], 1.0 - min(cfg.ema_decay, (1 + step) / (10 + step)))
         history.append({"step": step, "epoch": epoch, "lr": lr, "loss": loss.item(), **{n: v.item() for n, v in terms.items()},
-                        "grad_norm": grad_norm.item()})  # fmt: skip
+                        "grad_norm": grad_norm.item(), **group_norms})  # fmt: skip
         since_ckpt.append(history[-1]["loss"])
         if step % cfg.log_every == 0:
             bar.set_postfix({n: f"{v:.3g}" for n, v in history[-1].items() if n not in ("step", "epoch")})
@@ -213,6 +216,12 @@ def train(objective: Objective, cfg: Mapping[str, Any] | TrainConf | None, log_d
         _write_logs(Path(log_dir), history, evaluations)
     remove_state(path)
     return TrainResult(t_prev + time.perf_counter() - t0, step, history, stopped, resumed, evaluations)
+
+
+def _grad_norm(params: list[torch.Tensor]) -> float:
+    """The global 2-norm of the gradients of ``params`` (0 where none has one)."""
+    grads = [p.grad for p in params if p.grad is not None]
+    return torch.linalg.vector_norm(torch.stack([torch.linalg.vector_norm(g) for g in grads])).item() if grads else 0.0
 
 
 def _write_logs(log_dir: Path, history: list[dict], evaluations: list[dict]) -> None:

@@ -128,8 +128,8 @@ class GAPS(DrapingMethod):
             self.input_mean[self.body.n_betas :] = allx.mean(0)
             self.input_std[self.body.n_betas :] = allx.std(0).clamp_min(1e-3)
         body_params = list(self.net.gru.parameters()) + ([self.weights] if self.weights.requires_grad else [])
-        groups = [{"params": body_params, "lr_factor": 1.0},
-                  {"params": list(self.net.out.parameters()), "lr_factor": tp["lr_output_factor"], "eps": tp["output_adam_eps"]}]  # fmt: skip
+        groups = [{"name": "trunk", "params": body_params, "lr_factor": 1.0},
+                  {"name": "output", "params": list(self.net.out.parameters()), "lr_factor": tp["lr_output_factor"], "eps": tp["output_adam_eps"]}]  # fmt: skip
         key = content_hash(self.p, budget, self.garment_key, dict(self.body.state_dict()), self.body.parents, data.material,
                            [(s.betas, s.poses, s.trans, s.fps) for s in seqs])  # fmt: skip
         objective = Objective("gaps", groups, len(self._windows), self._batch, self._loss_terms, key)

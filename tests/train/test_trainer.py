@@ -38,6 +38,16 @@ def test_a_nan_in_one_term_stops_training_naming_the_term_and_the_step(tmp_path)
     assert all(torch.equal(a, b) for a, b in zip(seen[-1], params))  # no step was taken on it
 
 
+def test_named_groups_log_their_gradient_norms_before_clipping(tmp_path):
+    objective, (w, v) = toy()
+    objective.param_groups[0]["name"], objective.param_groups[1]["name"] = "w", "v"
+    res = train(objective, BUDGET, checkpoint_dir=tmp_path)
+    for h in res.history:
+        assert h["grad_norm_w"] > 0 and h["grad_norm_v"] > 0
+        assert h["grad_norm"] == pytest.approx((h["grad_norm_w"] ** 2 + h["grad_norm_v"] ** 2) ** 0.5, rel=1e-5)
+    assert max(h["grad_norm"] for h in res.history) > BUDGET["grad_clip"]  # the logged norms are those before the clip
+
+
 def test_a_non_finite_gradient_stops_before_the_step(tmp_path):
     objective, (w, v) = toy()
     objective.loss_terms = lambda b, at: {"root": w.abs().sqrt().sum()}  # finite (0) at w = 0, infinite slope
