@@ -90,6 +90,30 @@ def output_parts(m, seq) -> tuple[dict, dict]:
         return stats, {name: m.skinned(d.reshape(1, T, -1), betas, seq) for name, d in parts.items()}
 
 
+def canonical_offsets(m, seq, x: torch.Tensor) -> torch.Tensor:
+    """(T, V, 3) m: the canonical displacements D whose skinning on ``seq`` is the drape x (T, V, 3) m, i.e.
+    ``m.skinned(D) == x``: x minus the untrained skinning, mapped back through each vertex's blended rotation
+    (T, V, 3, 3) (skinning is affine in the canonical point). Raises ValueError where a blended rotation is
+    singular (a skinning weight row far from a partition of unity)."""
+    rot = torch.einsum("vj,tjab->tvab", m.weights.detach().to(x.dtype), seq.transforms(m.body)[..., :3, :3].to(x.dtype))
+    d, info = torch.linalg.solve_ex(rot, (x - m.untrained_drape(seq).to(x.dtype))[..., None])
+    if bool((info != 0).any()):
+        raise ValueError("a vertex's blended skinning rotation is singular: the drape cannot be mapped back to canonical space")
+    return d[..., 0]
+
+
+def static_and_varying(m, seq, x: torch.Tensor) -> dict:
+    """Drape x (T, V, 3) m taken apart in canonical space (:func:`canonical_offsets`) into its time mean over
+    the frames after the transition (a correction that depends on the body shape only, as a network could learn
+    it from other motions) and the rest (what depends on this motion): {"static part": drape, "varying part":
+    drape}, each the untrained skinning plus that part."""
+    d = canonical_offsets(m, seq, x)
+    static = d[int(seq.n_transition) :].mean(0, keepdim=True).expand_as(d)
+    betas, T = m._sequence_betas(seq), seq.n_frames
+    with torch.no_grad():
+        return {name: m.skinned(part.reshape(1, T, -1), betas, seq) for name, part in (("static part", static), ("varying part", d - static))}
+
+
 SATURATED = 0.99  # a GRU output unit with |y| above this is saturated (tanh's slope below 0.02)
 
 
@@ -152,7 +176,9 @@ def run_terms(run_dir, training_motion: str | None = None, optimum_run=None) -> 
     frames after the transition) of a gaps run's trained drape, of its untrained skinning and of the parts of
     the network's output (:func:`output_parts`), one row each, on the run's test sequence or, with
     ``training_motion``, on the first ``train_small`` sequence of that motion with the run's body shape, with
-    a row for the drape of ``optimum_run`` (a ``gaps_optimum`` run of the same scene) if given; the output's
+    rows for the drape of ``optimum_run`` (a ``gaps_optimum`` run of the same scene) if given and for its
+    static and varying parts (:func:`static_and_varying`); on the test sequence, each drape's distance to the
+    run's reference (``error (mm)``, mean over the frames after the transition, as the vertex error); the output's
     statistics; and :func:`trunk_state`. A trained drape whose total is above the untrained one's is worse by
     GAPS's own objective."""
     import dataclasses
@@ -177,13 +203,16 @@ def run_terms(run_dir, training_motion: str | None = None, optimum_run=None) -> 
         if optimum.shape != drapes["trained"].shape:
             raise ValueError(f"{optimum_run}'s drape {tuple(optimum.shape)} is not of {run_dir}'s scene {tuple(drapes['trained'].shape)}")
         drapes["loss optimum"] = optimum
+        drapes.update({f"loss optimum, {k}": v for k, v in static_and_varying(m, seq, optimum).items()})
     stats, parts = output_parts(m, seq)
     drapes.update(parts)
     loss, start = m.window_loss(seq, m.p["train"]["kext_ramp_epochs"]), int(seq.n_transition)
+    reference = run.reference() if training_motion is None else None
     rows = []
     for name, x in drapes.items():
         terms = pd.DataFrame(sequence_terms(loss, x, m.p["train"]["window"])[start:]).mean()
-        rows.append({"drape": name, "sequence": seq.name, "total": terms.sum(), **terms.to_dict()})
+        error = {} if reference is None else {"error (mm)": 1e3 * float((x[start:] - reference[start:].to(x.dtype)).norm(dim=-1).mean())}
+        rows.append({"drape": name, "sequence": seq.name, **error, "total": terms.sum(), **terms.to_dict()})
     return pd.DataFrame(rows), stats, trunk_state(m, seq)
 
 

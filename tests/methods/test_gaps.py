@@ -299,6 +299,26 @@ def test_the_diagnostic_takes_the_network_output_apart(scene):
     assert 1e3 * smooth < 0.5 * rough["mean |D| (mm)"]  # averaging over the 1-rings shrinks a random field
 
 
+def test_the_diagnostic_maps_a_drape_back_to_canonical_space_and_splits_it(scene):
+    """methods.gaps.diagnose.canonical_offsets inverts the skinning of canonical displacements; static_and_varying
+    gives a time-constant displacement all to the static part and a frame-to-frame one to the varying part."""
+    from methods.gaps.diagnose import canonical_offsets, static_and_varying
+
+    body, g, seqs = scene
+    m = _set_up(body, g, {})
+    seq = seqs[0]
+    T, V = seq.n_frames, g.n_vertices
+    rng = torch.Generator().manual_seed(0)
+    fixed = 0.01 * torch.randn(1, V, 3, generator=rng).expand(T, V, 3)
+    moving = 0.01 * torch.randn(T, V, 3, generator=rng)
+    moving = moving - moving[seq.n_transition :].mean(0)  # zero time mean over the frames after the transition
+    drape = m.skinned((fixed + moving).reshape(1, T, -1), m._sequence_betas(seq), seq)
+    torch.testing.assert_close(canonical_offsets(m, seq, drape), fixed + moving, atol=1e-5, rtol=0)
+    parts = static_and_varying(m, seq, drape)
+    torch.testing.assert_close(parts["static part"], m.skinned(fixed.reshape(1, T, -1), m._sequence_betas(seq), seq), atol=1e-5, rtol=0)
+    torch.testing.assert_close(parts["varying part"], m.skinned(moving.reshape(1, T, -1), m._sequence_betas(seq), seq), atol=1e-5, rtol=0)
+
+
 def test_the_diagnostic_sees_a_saturated_trunk(scene):
     """methods.gaps.diagnose.trunk_state: a fresh GRU is not saturated and follows the motion; one whose
     candidate biases are pushed far out outputs +-1 whatever the frame, and its output layer sees a constant."""
@@ -333,11 +353,16 @@ def test_the_diagnostic_scores_a_loss_optimum_drape_beside_the_run(scene, tmp_pa
     body, g, seqs = scene
     m = _set_up(body, g, {})
     seq = seqs[0]
-    monkeypatch.setattr(drapebench.trained_run, "load_run", lambda run_dir: types.SimpleNamespace(method=m, seq=seq, garment=g))
+    reference = m.untrained_drape(seq) + torch.tensor([0.0, 0.0, 0.01])  # 10 mm above the untrained drape
+    run = types.SimpleNamespace(method=m, seq=seq, garment=g, reference=lambda: reference)
+    monkeypatch.setattr(drapebench.trained_run, "load_run", lambda run_dir: run)
     write_prediction(tmp_path / "prediction.h5", m.untrained_drape(seq), g.faces)
     table, _, _ = run_terms("run", optimum_run=tmp_path)
     rows = table.set_index("drape")
     assert rows.loc["loss optimum", "total"] == pytest.approx(rows.loc["untrained", "total"], rel=1e-4)
+    assert rows.loc["untrained", "error (mm)"] == pytest.approx(10.0, rel=1e-4)
+    assert rows.loc["loss optimum, static part", "error (mm)"] == pytest.approx(10.0, rel=1e-4)  # no move: both parts are the start
+    assert rows.loc["loss optimum, varying part", "total"] == pytest.approx(rows.loc["untrained", "total"], rel=1e-4)
     write_prediction(tmp_path / "prediction.h5", m.untrained_drape(seq)[:5], g.faces)
     with pytest.raises(ValueError, match="is not of"):
         run_terms("run", optimum_run=tmp_path)
