@@ -22,7 +22,8 @@ from drapebench.geometry.sdf import closest_body_point
 from drapebench.train import Objective, train, train_config
 from methods.base import DrapeResult, DrapingMethod, FitReport
 from methods.gaps import losses
-from methods.gaps.config import gaps_params
+from methods.gaps.canonical import relaxation
+from methods.gaps.config import ADDED_KEYS, gaps_params
 from methods.gaps.network import GapsNet
 from methods.gaps.skinning import rbf_shapedirs, rbf_weights, smoothed_weights
 
@@ -78,6 +79,7 @@ class GAPS(DrapingMethod):
             self.input_mean = torch.zeros(self.n_in)
             self.input_std = torch.ones(self.n_in)
         self.garment_key = content_hash(garment.vertices, garment.faces)
+        self.relaxed = relaxation(self, p["relax_iterations"]) if p["canonical"] == "relaxed" else None
 
     # ------------------------------------------------------------------ forward model
     def _inputs(self, betas: torch.Tensor, poses: torch.Tensor, vel: torch.Tensor) -> torch.Tensor:
@@ -96,12 +98,15 @@ class GAPS(DrapingMethod):
             return rbf_shapedirs(self.template, rest_body, self.body.shapedirs, self.p["rbf_k"])
         return None
 
-    def _canonical(self, delta: torch.Tensor, betas: torch.Tensor) -> torch.Tensor:
+    def _canonical(self, delta: torch.Tensor, betas: torch.Tensor, relaxed: bool = True) -> torch.Tensor:
         """Template + displacements delta (B, T, 3V) m -> (B, T, V, 3) m, plus the body's shape blend shape
-        for betas (B, S) away from the garment's own shape unless ``shape_transfer`` is none."""
+        for betas (B, S) away from the garment's own shape unless ``shape_transfer`` is none, plus (``relaxed``
+        and ``canonical: relaxed``) the canonical garment's relaxation at that shape (:mod:`methods.gaps.canonical`)."""
         x = self.template + delta.reshape(*delta.shape[:2], -1, 3)
         if self.shape_dirs is not None:
             x = x + torch.einsum("vcs,bs->bvc", self.shape_dirs, betas - self.garment_betas)[:, None]
+        if relaxed and getattr(self, "relaxed", None) is not None:
+            x = x + self.relaxed.at(betas - self.garment_betas)[:, None]
         return x
 
     # ------------------------------------------------------------------ training
@@ -323,7 +328,7 @@ class GAPS(DrapingMethod):
         if not state:
             return
         model = {k: v for k, v in self.p.items() if k != "train"}  # training settings do not change what is loaded
-        trained = {k: v for k, v in state["params"].items() if k != "train"}
+        trained = {**ADDED_KEYS, **{k: v for k, v in state["params"].items() if k != "train"}}  # a key added later: its default
         if trained != model:
             raise ValueError(f"gaps checkpoint was trained with {trained}, not {model}")
         if self.net is None:
