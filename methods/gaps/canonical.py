@@ -55,7 +55,7 @@ def relax_at(m, b: torch.Tensor, iterations: int) -> tuple[torch.Tensor, float, 
         out = body.forward(betas, torch.zeros(1, body.n_joints, 3, dtype=body.dtype), torch.zeros(1, 3, dtype=body.dtype))
         bv = out.vertices.expand(W, -1, -1)
         bn = vertex_normals(out.vertices, body.faces).expand(W, -1, -1)
-        start = m._canonical(torch.zeros(1, 1, 3 * len(m.template), dtype=body.dtype), b[None], relaxed=False)[0, 0]  # rest pose: canonical = world
+        start = m._canonical(torch.zeros(1, 1, 3 * len(m.template), dtype=body.dtype), betas, relaxed=False)[0, 0]  # rest pose: canonical = world
     epoch = m.p["train"]["kext_ramp_epochs"]
 
     def loss(x: torch.Tensor) -> torch.Tensor:
