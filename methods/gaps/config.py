@@ -29,7 +29,9 @@ METHOD_DEFAULTS = dict(
     trainable_weights=False,  # the code trains them; frozen here (methods/gaps/README.md)
     shape_transfer="rbf",  # none (the paper) | nearest (SNUG) | rbf: the body's shape blend shape at the garment
     canonical="template",  # template: the garment as cut | relaxed: at rest under GAPS's loss on the rest-pose body (methods/gaps/canonical.py)
-    relax_iterations=200,  # L-BFGS iterations of each canonical relaxation solve (canonical: relaxed)
+    relax_grid=(-2.0, 0.0, 2.0),  # canonical: relaxed: shape-offset values solved on each relaxed component
+    relax_components=2,  # canonical: relaxed: the first that many shape components are relaxed (grid: len(relax_grid)^K solves)
+    relax_iterations=200,  # canonical: relaxed: L-BFGS iterations of each solve
     normalisation="code",  # code: per-frame terms / (B x W), collision and inertia / B | batch: every term / B
     inextensibility_weight=2e8,
     kext="collision",  # collision | one
@@ -45,7 +47,7 @@ METHOD_DEFAULTS = dict(
     collision_postprocess=False,  # SNUG's push-out at inference; off unless a config asks for it
     train=TRAIN_DEFAULTS,
 )
-ADDED_KEYS = dict(canonical="template", relax_iterations=200)  # keys newer than some checkpoints, at the behaviour those were trained with
+ADDED_KEYS = dict(canonical="template", relax_grid=(-2.0, 0.0, 2.0), relax_components=2, relax_iterations=200)  # keys newer than some checkpoints, at the behaviour those were trained with
 OPTIMUM_DEFAULTS = dict(
     **SOLVER_DEFAULTS,  # drapebench.optimum: solver, iterations, lr, history
     kext_epoch=None,  # the training epoch whose k_ext the loss uses; None: the end of train.kext_ramp_epochs (its final value)

@@ -79,7 +79,7 @@ class GAPS(DrapingMethod):
             self.input_mean = torch.zeros(self.n_in)
             self.input_std = torch.ones(self.n_in)
         self.garment_key = content_hash(garment.vertices, garment.faces)
-        self.relaxed = relaxation(self, p["relax_iterations"]) if p["canonical"] == "relaxed" else None
+        self.relaxed = relaxation(self) if p["canonical"] == "relaxed" else None
 
     # ------------------------------------------------------------------ forward model
     def _inputs(self, betas: torch.Tensor, poses: torch.Tensor, vel: torch.Tensor) -> torch.Tensor:

@@ -370,37 +370,46 @@ def test_the_diagnostic_scores_a_loss_optimum_drape_beside_the_run(scene, tmp_pa
         run_terms("run", training_motion="walk", optimum_run=tmp_path)
 
 
-def test_a_relaxed_canonical_garment_lowers_the_loss_at_rest_and_is_piecewise_linear_in_the_shape(scene, monkeypatch):
-    """canonical: relaxed (methods.gaps.canonical): each solve lowers GAPS's loss on the rest-pose body; the
-    relaxation is exact at the solved shapes, the garment's own shape included, and linear between; the canonical
-    garment is template + transfer + relaxation; a second set-up reads the cache instead of solving again."""
+def test_a_relaxed_canonical_garment_lowers_the_loss_at_rest_and_is_multilinear_in_the_shape(scene, monkeypatch):
+    """canonical: relaxed (methods.gaps.canonical): each grid solve lowers GAPS's loss on the rest-pose body; the
+    relaxation is exact at every grid point, a corner included (two components' relaxations do not add), multilinear
+    between them and clamped outside; the canonical garment is template + transfer + relaxation; a second set-up
+    reads the cache instead of solving again."""
     import methods.gaps.canonical as canonical
 
     body, g, _ = scene
-    m = _set_up(body, g, {"canonical": "relaxed", "relax_iterations": 15, "train": {"beta_range": [2.0]}})
+    cfg = {"canonical": "relaxed", "relax_iterations": 10, "relax_grid": [-2.0, 0.0, 2.0], "relax_components": 2}
+    m = _set_up(body, g, cfg)
     rel = m.relaxed
-    assert rel.pos.shape == (g.n_vertices, 3, 1) and np.all(rel.loss_end <= rel.loss_start)
-    assert rel.loss_end[1] < 0.9 * rel.loss_start[1]  # beta0 = +2: the shape transfer's stretch is relaxed
-    S = body.n_betas
-    b = torch.zeros(3, S)
-    b[1, 0], b[2, 0] = 2.0, -1.0
+    assert rel.d.shape == (9, g.n_vertices, 3) and np.all(rel.loss_end <= rel.loss_start)
+    corner = 8  # (2, 2): the last grid point
+    assert rel.loss_end[corner] < 0.9 * rel.loss_start[corner]  # the shape transfer's stretch is relaxed
+    b = torch.zeros(4, body.n_betas)
+    b[0, :2] = torch.tensor([2.0, 2.0])
+    b[1, :2] = torch.tensor([1.0, 2.0])  # halfway between (0, 2) and (2, 2)
+    b[2, :2] = torch.tensor([5.0, 2.0])  # outside: clamped to (2, 2)
+    b[3, :3] = torch.tensor([2.0, 2.0, 1.0])  # a component beyond relax_components does not enter
     d = rel.at(b)
-    solved, _, _ = canonical.relax_at(m, b[1], 15)
-    torch.testing.assert_close(d[0], rel.d0)
-    torch.testing.assert_close(d[1], solved, atol=1e-6, rtol=0)
-    torch.testing.assert_close(d[2], rel.d0 + 0.5 * (canonical.relax_at(m, -2.0 * torch.eye(S)[0], 15)[0] - rel.d0), atol=1e-6, rtol=0)
+    solved, _, _ = canonical.relax_at(m, b[0], 10)
+    torch.testing.assert_close(d[0], solved, atol=1e-6, rtol=0)
+    torch.testing.assert_close(d[1], 0.5 * (rel.d[5] + rel.d[8]), atol=1e-6, rtol=0)
+    torch.testing.assert_close(d[2], d[0])
+    torch.testing.assert_close(d[3], d[0])
+    assert (rel.d[2] + rel.d[6] - rel.d[4] - rel.d[8]).norm(dim=-1).mean() > 1e-4  # not additive: a grid is needed
     zero = torch.zeros(1, 1, 3 * g.n_vertices)
-    torch.testing.assert_close(m._canonical(zero, b[1:2])[0, 0] - m._canonical(zero, b[1:2], relaxed=False)[0, 0], solved, atol=1e-6, rtol=0)
+    torch.testing.assert_close(m._canonical(zero, b[:1])[0, 0] - m._canonical(zero, b[:1], relaxed=False)[0, 0], solved, atol=1e-6, rtol=0)
     monkeypatch.setattr(canonical, "relax_at", lambda *a: pytest.fail("solved again instead of reading the cache"))
-    again = _set_up(body, g, {"canonical": "relaxed", "relax_iterations": 15, "train": {"beta_range": [2.0]}})
-    torch.testing.assert_close(again.relaxed.pos, rel.pos)
+    again = _set_up(body, g, cfg)
+    torch.testing.assert_close(again.relaxed.d, rel.d)
+    with pytest.raises(ValueError, match="relax_grid"):
+        _set_up(body, g, {**cfg, "relax_grid": [0.0]})
 
 
 def test_a_checkpoint_from_before_a_key_was_added_loads_with_that_key_s_default(scene):
     body, g, seqs = scene
     m, _ = _fit(scene)
     state = m.state_dict()
-    state["params"] = {k: v for k, v in state["params"].items() if k not in ("canonical", "relax_iterations")}
+    state["params"] = {k: v for k, v in state["params"].items() if k not in ("canonical", "relax_grid", "relax_components", "relax_iterations")}
     old = methods.get("gaps")({})
     old.bind(body, Material())
     old.load_state_dict(state)
