@@ -28,12 +28,12 @@ from drapebench.geometry.ops import vertex_normals
 from drapebench.optimum import minimise
 
 log = logging.getLogger("drapebench")
-RELAXED = Cache("gaps_canonical", 2)  # bump when the solve or the stored arrays change
+RELAXED = Cache("gaps_canonical", 3)  # bump when the solve or the stored arrays change
 
 
 @dataclass
 class Relaxation:
-    """grid (G,) shape-offset values on each of the first K components; d (G^K, V, 3) m: the relaxation at each grid
+    """grid (G,) shape-offset values on each of the first K components; d (G^K, V, 3) m (float64): the relaxation at each grid
     point (itertools.product order, the last component fastest); loss_start, loss_end (G^K,): GAPS's loss at each
     solve's start and end."""
 
@@ -61,15 +61,15 @@ class Relaxation:
 
 def relax_at(m, b: torch.Tensor, iterations: int) -> tuple[torch.Tensor, float, float]:
     """GAPS ``m``'s canonical garment for shape offset b (S,) relaxed on the rest-pose body of that shape: its move
-    (V, 3) m from ``template + transfer(b)`` minimising ``m._terms`` (at most ``iterations`` L-BFGS iterations),
-    and the loss at the start and at the end."""
+    (V, 3) m (float64) from ``template + transfer(b)`` minimising ``m._terms`` (at most ``iterations`` L-BFGS
+    iterations), and the loss at the start and at the end."""
     body, W = m.body, m.p["train"]["window"]
     betas = (m.garment_betas + b)[None]
-    with torch.no_grad():
+    with torch.no_grad():  # solved in float64 whatever the body's dtype: float32 and float64 runs share one relaxation
         out = body.forward(betas, torch.zeros(1, body.n_joints, 3, dtype=body.dtype), torch.zeros(1, 3, dtype=body.dtype))
-        bv = out.vertices.expand(W, -1, -1)
-        bn = vertex_normals(out.vertices, body.faces).expand(W, -1, -1)
-        start = m._canonical(torch.zeros(1, 1, 3 * len(m.template), dtype=body.dtype), betas, relaxed=False)[0, 0]  # rest pose: canonical = world
+        bv = out.vertices.double().expand(W, -1, -1)
+        bn = vertex_normals(out.vertices, body.faces).double().expand(W, -1, -1)
+        start = m._canonical(torch.zeros(1, 1, 3 * len(m.template), dtype=body.dtype), betas, relaxed=False)[0, 0].double()  # rest pose: canonical = world
     epoch = m.p["train"]["kext_ramp_epochs"]
 
     def loss(x: torch.Tensor) -> torch.Tensor:
@@ -91,7 +91,7 @@ def relaxation(m) -> Relaxation:
         raise ValueError(f"canonical: relaxed needs relax_grid of at least 2 values (got {grid}) and relax_components "
                          f"between 1 and the body's {m.body.n_betas} betas (got {K})")  # fmt: skip
     key = (body_key(m.body), m.garment_key, {k: v for k, v in p.items() if k != "train"}, p["train"]["kext_ramp_epochs"],
-           p["train"]["window"], m.material, str(m.body.dtype))  # fmt: skip
+           p["train"]["window"], m.material)  # fmt: skip
     path = RELAXED.path(*key, prefix="relaxed", suffix=".pt")
 
     def build() -> Relaxation:

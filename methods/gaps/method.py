@@ -22,7 +22,7 @@ from drapebench.geometry.sdf import closest_body_point
 from drapebench.train import Objective, train, train_config
 from methods.base import DrapeResult, DrapingMethod, FitReport
 from methods.gaps import losses
-from methods.gaps.canonical import relaxation
+from methods.gaps.canonical import RELAXED, relaxation
 from methods.gaps.config import ADDED_KEYS, gaps_params
 from methods.gaps.network import GapsNet
 from methods.gaps.skinning import rbf_shapedirs, rbf_weights, smoothed_weights
@@ -106,7 +106,7 @@ class GAPS(DrapingMethod):
         if self.shape_dirs is not None:
             x = x + torch.einsum("vcs,bs->bvc", self.shape_dirs, betas - self.garment_betas)[:, None]
         if relaxed and getattr(self, "relaxed", None) is not None:
-            x = x + self.relaxed.at(betas - self.garment_betas)[:, None]
+            x = x + self.relaxed.at(betas - self.garment_betas).to(x.dtype)[:, None]
         return x
 
     # ------------------------------------------------------------------ training
@@ -136,7 +136,7 @@ class GAPS(DrapingMethod):
         groups = [{"name": "trunk", "params": body_params, "lr_factor": 1.0},
                   {"name": "output", "params": list(self.net.out.parameters()), "lr_factor": tp["lr_output_factor"], "eps": tp["output_adam_eps"]}]  # fmt: skip
         key = content_hash(self.p, budget, self.garment_key, dict(self.body.state_dict()), self.body.parents, data.material,
-                           [(s.betas, s.poses, s.trans, s.fps) for s in seqs])  # fmt: skip
+                           [(s.betas, s.poses, s.trans, s.fps) for s in seqs], None if self.relaxed is None else self.relaxed.d)  # fmt: skip
         objective = Objective("gaps", groups, len(self._windows), self._batch, self._loss_terms, key)
         rounds = int(tp["output_smoothing"])
         hooks = [w.register_hook(lambda g: self._smooth_over_garment(g, rounds)) for w in self.net.out.parameters()] if rounds else []
@@ -320,9 +320,9 @@ class GAPS(DrapingMethod):
                 "n_in": self.n_in, "n_out": self.net.out.out_features}  # fmt: skip
 
     def settings_key(self) -> dict:
-        """The resolved parameters (code defaults included): a changed default retrains instead of loading a
-        checkpoint trained with the old one."""
-        return self.p
+        """The resolved parameters (code defaults included) and, with ``canonical: relaxed``, the relaxation's cache
+        version: a changed default or relaxation retrains instead of loading a checkpoint trained with the old one."""
+        return {**self.p, "relaxation": RELAXED.version} if self.p["canonical"] == "relaxed" else self.p
 
     def load_state_dict(self, state) -> None:
         if not state:
