@@ -7,9 +7,8 @@ to the body with no gravity and no shape. For body shape beta the canonical garm
 training loss (k_ext at the end of the ramp, no inertia: the garment at rest) on the rest-pose body of that
 shape. d is solved on a grid of shape offsets b = beta - the garment's betas: every combination of the values
 ``relax_grid`` on the first ``relax_components`` components (the others 0), and interpolated multilinearly
-between the grid points (clamped to the grid's range outside it). A grid, not one solve per component: the
-relaxations of two components do not add (at beta0 = beta1 = +2 their sum put 7-15 % of the garment inside
-the body).
+between the grid points (clamped to the grid's range outside it): a grid, because the relaxations of two
+components do not add.
 """
 
 from __future__ import annotations
