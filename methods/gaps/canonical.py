@@ -5,7 +5,9 @@ The paper's templates are garments resting on the canonical body; this suite's p
 to the body with no gravity and no shape. For body shape beta the canonical garment before the network is
 ``template + transfer(beta)`` (the shape transfer); its relaxation d(beta) is the move that minimises GAPS's
 training loss (k_ext at the end of the ramp, no inertia: the garment at rest) on the rest-pose body of that
-shape. d is solved on a grid of shape offsets b = beta - the garment's betas: every combination of the values
+shape, with the collision margin ``relax_clearance`` (larger than training's, so that the skinned garment keeps
+clear of the body in motion) and, for ablations of L_inext, GAPS's own L_inext weight
+(``relax_inextensibility_weight``: the same canonical garment, another training loss). d is solved on a grid of shape offsets b = beta - the garment's betas: every combination of the values
 ``relax_grid`` on the first ``relax_components`` components (the others 0), and interpolated multilinearly
 between the grid points (clamped to the grid's range outside it): a grid, because the relaxations of two
 components do not add.
@@ -60,8 +62,9 @@ class Relaxation:
 
 def relax_at(m, b: torch.Tensor, iterations: int) -> tuple[torch.Tensor, float, float]:
     """GAPS ``m``'s canonical garment for shape offset b (S,) relaxed on the rest-pose body of that shape: its move
-    (V, 3) m (float64) from ``template + transfer(b)`` minimising ``m._terms`` (at most ``iterations`` L-BFGS
-    iterations), and the loss at the start and at the end."""
+    (V, 3) m (float64) from ``template + transfer(b)`` minimising ``m._terms`` with the collision margin
+    ``relax_clearance`` and L_inext's weight ``relax_inextensibility_weight`` (None: the model's) (at most
+    ``iterations`` L-BFGS iterations), and the loss at the start and at the end."""
     body, W = m.body, m.p["train"]["window"]
     betas = (m.garment_betas + b)[None]
     with torch.no_grad():  # solved in float64 whatever the body's dtype: float32 and float64 runs share one relaxation
@@ -70,9 +73,11 @@ def relax_at(m, b: torch.Tensor, iterations: int) -> tuple[torch.Tensor, float, 
         bn = vertex_normals(out.vertices, body.faces).double().expand(W, -1, -1)
         start = m._canonical(torch.zeros(1, 1, 3 * len(m.template), dtype=body.dtype), betas, relaxed=False)[0, 0].double()  # rest pose: canonical = world
     epoch = m.p["train"]["kext_ramp_epochs"]
+    inext = m.p["relax_inextensibility_weight"]
+    p = {**m.p, "collision_eps": m.p["relax_clearance"], "inextensibility_weight": m.p["inextensibility_weight"] if inext is None else inext}
 
     def loss(x: torch.Tensor) -> torch.Tensor:
-        return sum(m._terms(x[None].expand(W, -1, -1), bv, bn, epoch).values())
+        return sum(m._terms(x[None].expand(W, -1, -1), bv, bn, epoch, p).values())
 
     x, _ = minimise(loss, start, "lbfgs", iterations)
     with torch.no_grad():

@@ -32,6 +32,8 @@ METHOD_DEFAULTS = dict(
     relax_grid=(-2.0, 0.0, 2.0),  # canonical: relaxed: shape-offset values solved on each relaxed component
     relax_components=2,  # canonical: relaxed: the first that many shape components are relaxed (grid: len(relax_grid)^K solves)
     relax_iterations=200,  # canonical: relaxed: L-BFGS iterations of each solve
+    relax_clearance=6e-3,  # canonical: relaxed: the collision margin (m) of the solves (training's is collision_eps)
+    relax_inextensibility_weight=None,  # canonical: relaxed: L_inext's weight in the solves (None: inextensibility_weight)
     normalisation="code",  # code: per-frame terms / (B x W), collision and inertia / B | batch: every term / B
     inextensibility_weight=2e8,
     kext="collision",  # collision | one
@@ -47,7 +49,8 @@ METHOD_DEFAULTS = dict(
     collision_postprocess=False,  # SNUG's push-out at inference; off unless a config asks for it
     train=TRAIN_DEFAULTS,
 )
-ADDED_KEYS = dict(canonical="template", relax_grid=(-2.0, 0.0, 2.0), relax_components=2, relax_iterations=200)  # keys newer than some checkpoints, at the behaviour those were trained with
+ADDED_KEYS = dict(canonical="template", relax_grid=(-2.0, 0.0, 2.0), relax_components=2, relax_iterations=200, relax_clearance=2e-3,
+                  relax_inextensibility_weight=None)  # keys newer than some checkpoints, at the behaviour those were trained with
 OPTIMUM_DEFAULTS = dict(
     **SOLVER_DEFAULTS,  # drapebench.optimum: solver, iterations, lr, history
     kext_epoch=None,  # the training epoch whose k_ext the loss uses; None: the end of train.kext_ramp_epochs (its final value)

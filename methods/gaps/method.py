@@ -195,11 +195,12 @@ class GAPS(DrapingMethod):
         x = skin_then_translate(xc, self.weights, out.transforms, tr.reshape(B * W, 3))  # (B*W, V, 3)
         return self._terms(x, out.vertices, normals, at.epoch)
 
-    def _terms(self, x: torch.Tensor, body_vertices: torch.Tensor, body_normals: torch.Tensor, epoch: int) -> dict:
+    def _terms(self, x: torch.Tensor, body_vertices: torch.Tensor, body_normals: torch.Tensor, epoch: int, p: dict | None = None) -> dict:
         """The training loss's named, weighted terms of drapes x (B*W, V, 3) m, B windows of ``train.window``
-        frames, on the posed body (body_vertices, body_normals (B*W, Vb, 3)), with k_ext at ``epoch``."""
+        frames, on the posed body (body_vertices, body_normals (B*W, Vb, 3)), with k_ext at ``epoch``, under the
+        parameters ``p`` (default: the model's)."""
         nn = self._body_contact(x, body_vertices, body_normals)
-        terms, k_ext = losses.loss_terms(x, self.p["train"]["window"], nn, self.topology, self.material, self.p, epoch, self.bend_blend)
+        terms, k_ext = losses.loss_terms(x, self.p["train"]["window"], nn, self.topology, self.material, p or self.p, epoch, self.bend_blend)
         if k_ext is not None:
             self.last_kext_max = float(k_ext.max())
         return terms
@@ -263,12 +264,14 @@ class GAPS(DrapingMethod):
         return DrapeResult(x, timings)
 
     def scored_variants(self, seq, result: DrapeResult) -> dict:
-        """The drape on the other side of the collision push-out, scored beside the drape (the paper scores
-        before it): "postprocessed" (T, V, 3) m, or "raw", the network's drape, under ``collision_postprocess``."""
-        if self.p["collision_postprocess"]:
-            return {"raw": result.extras["raw"]}
+        """Drapes scored beside the drape, each (T, V, 3) m: the other side of the collision push-out (the paper
+        scores before it), "postprocessed", or "raw", the network's drape, under ``collision_postprocess``; and
+        "untrained", the skinning with the network's output zero (what training starts from)."""
         with torch.no_grad():
-            return {"postprocessed": self._push_out(result.vertices, seq)}
+            untrained = self.untrained_drape(seq).to(result.vertices.dtype)
+            if self.p["collision_postprocess"]:
+                return {"raw": result.extras["raw"], "untrained": untrained}
+            return {"postprocessed": self._push_out(result.vertices, seq), "untrained": untrained}
 
     def _push_out(self, x: torch.Tensor, seq) -> torch.Tensor:
         """SNUG's collision post-processing: each vertex of the drape x (T, V, 3) m of ``seq`` moved out along the

@@ -232,6 +232,7 @@ def test_collision_postprocess_only_when_asked(scene):
     assert torch.equal(m.scored_variants(seq, fixed)["raw"], raw.vertices)
     m.p["collision_postprocess"] = False
     assert torch.equal(m.scored_variants(seq, raw)["postprocessed"], fixed.vertices)
+    assert torch.equal(m.scored_variants(seq, raw)["untrained"], m.untrained_drape(seq))  # training's start, scored too
 
 
 def _set_up(body, g, cfg):
@@ -272,7 +273,7 @@ def test_checkpoint_round_trip(scene, before_added_keys):
     state = m.state_dict()
     if before_added_keys:
         state["params"] = {k: v for k, v in state["params"].items() if k not in ADDED_KEYS}
-    m2 = methods.get("gaps")({})
+    m2 = methods.get("gaps")(dict(ADDED_KEYS) if before_added_keys else {})  # the behaviour it was trained with
     m2.bind(body, Material())
     m2.load_state_dict(state)
     assert torch.allclose(m2.drape(g, seqs[0]).vertices, m.drape(g, seqs[0]).vertices)
@@ -409,3 +410,28 @@ def test_a_relaxed_canonical_garment_lowers_the_loss_at_rest_and_is_multilinear_
     torch.testing.assert_close(again.relaxed.d, rel.d)
     with pytest.raises(ValueError, match="relax_grid"):
         _set_up(body, g, {**cfg, "relax_grid": [0.0]})
+
+
+def test_the_relaxation_keeps_its_clearance_and_an_ablation_of_inext_can_share_gaps_s_canonical_garment(scene):
+    """relax_clearance is the collision margin of the rest solves: a larger one leaves the relaxed garment farther
+    from the rest-pose body. relax_inextensibility_weight puts L_inext back into the solves of a model trained
+    without it: its canonical garment is then GAPS's; without it the garment relaxes under its own loss."""
+    body, g, _ = scene
+    base = {"canonical": "relaxed", "relax_iterations": 10, "relax_grid": [0.0, 2.0], "relax_components": 1}
+    b = torch.zeros(1, body.n_betas)
+    b[0, 0] = 2.0
+    zero = torch.zeros(1, 1, 3 * g.n_vertices)
+
+    def clearance_mm(m):  # mean signed distance (mm) to the rest-pose body of the 10 % closest vertices
+        rest = body.shaped(m.garment_betas[None] + b)[0][0]
+        d = signed_distance(m._canonical(zero, m.garment_betas[None] + b)[0, 0], rest, body.faces, exact=True, outer_faces=body.outer_faces).flatten()
+        return 1e3 * float(d.sort().values[: len(d) // 10].mean())
+
+    near, far = (_set_up(body, g, {**base, "relax_clearance": c}) for c in (2e-3, 1.5e-2))
+    assert clearance_mm(far) > clearance_mm(near) + 1.0
+    gaps = _set_up(body, g, base)
+    no_inext = {**base, "inextensibility_weight": 0.0}
+    shared = _set_up(body, g, {**no_inext, "relax_inextensibility_weight": 2e8})
+    torch.testing.assert_close(shared.relaxed.d, gaps.relaxed.d)
+    own = _set_up(body, g, no_inext)
+    assert (own.relaxed.d - gaps.relaxed.d).norm(dim=-1).mean() > 1e-4
