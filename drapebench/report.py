@@ -370,18 +370,22 @@ def runtime_plot(df: pd.DataFrame, path: Path, title: str = "") -> Path:
     fig, ax = plt.subplots(figsize=(8.0, 4.4))
     varying = [c for c in ("garment", "shape", "motion", "body") if c in df and df[c].nunique() > 1]
     scene = df[varying].astype(str).agg(", ".join, axis=1) if varying else pd.Series("", index=df.index)
-    shapes = {k: "os^DvPX*<>"[i % 10] for i, k in enumerate(dict.fromkeys(scene))}
+    shapes = {k: ("os^DvPX*<>phd8H"[i % 15], i // 15 % 2 == 0) for i, k in enumerate(dict.fromkeys(scene))}  # (marker, filled)
     colour = {m: f"C{i % 10}" for i, m in enumerate(dict.fromkeys(df["method"]))}
     for (method, key), g in df.groupby([df["method"], scene], sort=False):
-        ax.scatter(g["ms_per_frame"], g[error], color=colour[method], marker=shapes[key], s=36)
+        marker, filled = shapes[key]
+        ax.scatter(g["ms_per_frame"], g[error], marker=marker, s=36, color=colour[method] if filled else "none", edgecolors=colour[method])
     methods = [Line2D([], [], color=c, marker="o", ls="", label=m) for m, c in colour.items()]
-    # both legends right of the axes: inside they can hide points
-    ax.add_artist(ax.legend(handles=methods, fontsize=7, title="method", title_fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0)))
+    # both legends right of the axes (inside they can hide points), the scenes' below the methods'
+    by_method = ax.add_artist(ax.legend(handles=methods, fontsize=7, title="method", title_fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0)))
     if varying:
-        scenes = [Line2D([], [], color="grey", marker=m, ls="", label=k) for k, m in shapes.items()]
+        fig.canvas.draw()  # the methods' legend's height is known once drawn
+        below = by_method.get_window_extent().transformed(ax.transAxes.inverted()).y0 - 0.02
+        scenes = [Line2D([], [], color="grey", marker=m, ls="", label=k, markerfacecolor="grey" if filled else "none")
+                  for k, (m, filled) in shapes.items()]  # fmt: skip
         names = {"shape": "body shape"}
-        ax.legend(handles=scenes, fontsize=7, title=", ".join(names.get(c, c) for c in varying), title_fontsize=7, loc="lower left",
-                  bbox_to_anchor=(1.01, 0.0))  # fmt: skip
+        ax.legend(handles=scenes, fontsize=7, title=", ".join(names.get(c, c) for c in varying), title_fontsize=7, loc="upper left",
+                  bbox_to_anchor=(1.01, below))  # fmt: skip
     ax.set_xscale("log")
     plain = matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}")  # 2, not 2 x 10^0
     ax.xaxis.set_major_formatter(plain)
