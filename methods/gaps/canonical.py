@@ -7,10 +7,10 @@ to the body with no gravity and no shape. For body shape beta the canonical garm
 training loss (k_ext at the end of the ramp, no inertia: the garment at rest) on the rest-pose body of that
 shape, with the collision margin ``relax_clearance`` (larger than training's, so that the skinned garment keeps
 clear of the body in motion) and, for ablations of L_inext, GAPS's own L_inext weight
-(``relax_inextensibility_weight``: the same canonical garment, another training loss). d is solved on a grid of shape offsets b = beta - the garment's betas: every combination of the values
-``relax_grid`` on the first ``relax_components`` components (the others 0), and interpolated multilinearly
-between the grid points (clamped to the grid's range outside it): a grid, because the relaxations of two
-components do not add.
+(``relax_inextensibility_weight``: the same canonical garment, another training loss). d is solved on a grid
+of shape offsets b = beta - the garment's betas: every combination of the values ``relax_grid`` on the first
+``relax_components`` components (the others 0), and interpolated multilinearly between the grid points
+(clamped to the grid's range outside it): a grid, because the relaxations of two components do not add.
 """
 
 from __future__ import annotations
