@@ -27,7 +27,7 @@ from drapebench.train.convergence import converged_seconds
 # table name -> (metrics shown, what the column groups are)
 TABLES = {
     "baseline": (["eps_e", "eps_a", "eps_c"], "garment"),
-    "gaps_table1": (["eps_e", "eps_a", "eps_c"], "garment"),
+    "gaps_table1": (["eps_e", "eps_a", "eps_c", "eps_c@postprocessed"], "garment"),  # the paper scores before the push-out
     "gaps_table2": (["eps_c"], "garment"),
     "gaps_heldout": (["vertex_error_mm", "vertex_error_mm@untrained", "eps_c", "eps_c@postprocessed"], "shape"),
     "gaps_table3": (["eps_e", "eps_a", "eps_c"], "shape"),
