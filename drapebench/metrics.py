@@ -1,45 +1,13 @@
-"""One metric suite for every method (definitions, units and which direction is better: ``docs/metrics.md``).
+"""One metric suite for every method: ``evaluate`` and its summary.
 
-Per frame, for garment positions x (T, V, 3) against the template (``garment.topology``) and the
-posed body of the sequence:
-
-- ``eps_e`` / ``eps_a``: mean absolute relative change (%) of edge lengths / face areas;
-- ``eps_c``: % of vertices inside the body, the headline collision rule: inside any body part counts
-  as inside (winding number of the whole body > 0.5, :func:`drapebench.geometry.sdf.inside_body`);
-- ``eps_c_nn``: % of vertices with nearest-body-vertex normal distance n . (x - v) < 0 (how the GAPS
-  code counts collisions; kept for comparison with the paper, not the headline);
-- ``edge_mm``: mean absolute edge-length change (mm); ``smoothness``: mean |cotangent Laplacian| of
-  the positions (m);
-- ``penetration_mm``: mean depth of the penetrating vertices (mm, 0 when none): their exact distance
-  to the closest point of the body's outer surface (:func:`drapebench.geometry.sdf.signed_distance`
-  with ``body.outer_faces``: faces buried inside another body part are not searched);
-- ``jitter``: mean |x[t+1] - 2 x[t] + x[t-1]| (mm; NaN at the first and last frame);
-- ``vertex_error_mm``: mean distance to the reference drape (mm), when one is given;
-- ``max_strain``: the largest relative edge-length change of the frame (%); ``max_penetration_mm``: the
-  depth of the frame's deepest vertex inside the body (mm, 0 when none); ``garment_body_mm``: the mean
-  signed distance of the garment's vertices to the body (mm);
-- ``energy_<name>``: :func:`drapebench.physics.energy_terms` per frame (J; collision in m^3, unweighted).
-
-The summary is the mean over the evaluated frames of every column, except ``penetration_mm`` (mean
-depth over all penetrating vertices of all frames), ``max_strain`` and ``max_penetration_mm`` (the
-largest over the frames), and ``drift_mm``: |mean garment_body_mm of the last 10 % of the frames - that
-of the first 10 %| (NaN below 10 frames); ``eps_e_std``, ``eps_a_std`` and ``eps_c_std``
-are the population std over frames of those metrics. The sequence's leading transition frames (rest
-pose -> motion) are left out by default. Frames are evaluated in chunks (``chunk_frames``), the body
-posed per chunk, so memory stays bounded on long sequences. The signed distance is the default path of
-:mod:`drapebench.geometry.sdf` (``exact=True``: its libigl path; the tolerance between them is stated
-there); the nearest body vertex (``eps_c_nn``, the collision energy) is searched over the corners of
-the body's outer faces in the same pass (:func:`drapebench.geometry.sdf.body_proximity`).
-
-Far from the origin: every frame is measured in its local frame, the sequence's root translation
-``trans[t]`` subtracted from the positions in float64 before the cast to the run's dtype and the body
-posed without it, so every metric is translation-invariant to float32's resolution at the body's scale
-(``jitter`` and ``vertex_error_mm`` are computed in float64 from the given positions; ``energy_gravity``
-keeps the world's datum z = 0). Positions given in float32 are only as fine as float32 is where they lie:
-measured for an lbs tshirt on a walk moved along x, eps_e, eps_a and edge_mm are off by 0.05 % of their
-value at 100 m, 0.6 % at 1 km, 3 % at 3 km and 18 % at 10 km (eps_c and penetration_mm by 0.25 % at 1 km).
-So float32 positions farther than :data:`MAX_FLOAT32_DISTANCE` (1 km) from the origin are refused
-(:class:`FarFromOrigin`); float64 positions are measured anywhere.
+The metrics' definitions, units, summaries and which direction is better are in ``docs/metrics.md``, and only
+there; this module implements them. Frames are evaluated in chunks (``chunk_frames``), the body posed per chunk,
+so memory stays bounded on long sequences. The signed distance is the default path of
+:mod:`drapebench.geometry.sdf` (``exact=True``: its libigl path); the nearest body vertex (``eps_c_nn``, the
+collision energy) is searched over the corners of the body's outer faces in the same pass
+(:func:`drapebench.geometry.sdf.body_proximity`). Every frame is measured in its local frame, the root translation
+subtracted in float64; float32 positions farther than :data:`MAX_FLOAT32_DISTANCE` from the origin are refused
+(:class:`FarFromOrigin`; the measured error against the distance is in ``docs/metrics.md``).
 """
 
 from __future__ import annotations
@@ -52,7 +20,7 @@ from drapebench.geometry.ops import edge_lengths, face_areas
 from drapebench.geometry.sdf import body_proximity
 from drapebench.physics import Material, energy_terms
 
-MAX_FLOAT32_DISTANCE = 1000.0  # m: the farthest float32 positions are measured from the origin (module docstring)
+MAX_FLOAT32_DISTANCE = 1000.0  # m: the farthest float32 positions are measured from the origin (docs/metrics.md)
 
 
 class FarFromOrigin(ValueError):
@@ -88,7 +56,7 @@ def evaluate(
     exact: bool = False,
     chunk_frames: int = CHUNK_FRAMES,
 ) -> tuple[dict, pd.DataFrame]:
-    """Metrics of a drape (definitions in the module docstring).
+    """Metrics of a drape (definitions: docs/metrics.md).
 
     Args:
         garment: :class:`drapebench.garments.Garment` (its ``topology`` is the template).

@@ -36,3 +36,25 @@ def test_the_reports_index_stays_an_index_and_links_every_table():
     assert not [link for link in links if not (ROOT / "reports" / link).exists()], "reports/README.md links a file that does not exist"
     tables = {p.name for p in (ROOT / "reports").glob("*.md")} - {"README.md", "history.md"}
     assert not tables - links, f"tables not in the reports index: {sorted(tables - links)}"
+
+
+METHOD_README_WORDS = 2600  # a method README is a map: paper to code, the open choices, links to the tables
+COMMIT_HASH = re.compile(r"\b(?=[0-9a-f]*[a-f])(?=[0-9a-f]*[0-9])[0-9a-f]{7,40}\b")
+
+
+def test_method_readmes_are_maps_without_commit_hashes():
+    readmes = sorted((ROOT / "methods").glob("*/README.md"))
+    assert readmes, "no method README found"
+    for readme in readmes:
+        text = readme.read_text()
+        name = str(readme.relative_to(ROOT))
+        assert len(text.split()) <= METHOD_README_WORDS, (
+            f"{name} is {len(text.split())} words (at most {METHOD_README_WORDS}): move measurement history to reports/history.md")
+        assert not COMMIT_HASH.findall(text), f"{name} names commit hashes {COMMIT_HASH.findall(text)}: history goes to reports/history.md"
+        links = re.findall(r"\]\(([^)#]+)\)", text)
+        assert not [link for link in links if not (readme.parent / link).exists()], f"{name} links a file that does not exist"
+
+
+def test_the_commit_hash_rule_catches_a_hash():
+    assert COMMIT_HASH.findall("measured at 494abcf and c14cf29") == ["494abcf", "c14cf29"]
+    assert not COMMIT_HASH.findall("1e-4, 0.28 M parameters, decoded 2,880 poses")

@@ -12,7 +12,7 @@ puts the error in the regressor.
 
 With ``--retrain '<json of regressor keys>' --seeds 100,101``: the run's pose descriptor and regressor trained
 again (its VAE and data kept) with those ``method.params.regressor`` keys and each training seed, and the
-regressed drape's distance printed per seed (the measurements of methods/vae/README.md, "Regressor training").
+regressed drape's distance printed per seed (the measurements of reports/history.md, "Regressor training").
 """
 
 from __future__ import annotations
