@@ -9,12 +9,13 @@ behind it. The output depends on the CSVs alone, so a test regenerates it and co
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import pandas as pd
 
 from drapebench.cache import atomic_write
+from drapebench.claim import Claim
 
 CELL = re.compile(r"^\s*(-?[\d.]+(?:e-?\d+)?)(?:\s*±\s*([\d.]+(?:e-?\d+)?))?(?:\s*\(n=(\d+)\))?\s*$")
 
@@ -74,30 +75,6 @@ def read_table(path: Path) -> Table:
         for row, v in df[col].items():
             cells[(str(row), group, metric)] = v
     return Table(path.stem, cells, list(dict.fromkeys(groups)), commits)
-
-
-@dataclass(frozen=True)
-class Claim:
-    """One headline claim. ``kind``: "order" (every ``greater`` pair (a, b) has a's ``metric`` above b's in every
-    group of ``groups``; a dict maps a group to its own pairs), "order_groups" (``row``'s ``metric`` in group a above
-    group b for every ``greater`` pair (a, b)), "level" (``row``'s ``metric`` at most ``bound`` in
-    every group), "runs" (``row`` has a number in every group) or "untested" (``why``: what it needs)."""
-
-    id: str
-    source: str  # paper, table or figure
-    claim: str
-    paper: str  # the paper's figures, verbatim
-    kind: str
-    table: str = ""
-    metrics: tuple = ()
-    greater: object = ()
-    row: str = ""
-    bound: float = float("inf")
-    groups: tuple = ()
-    comparable: bool = True  # False: an absolute level on a scene unlike the paper's (indicative only)
-    command: str = ""
-    why: str = ""
-    notes: tuple = field(default_factory=tuple)
 
 
 KINDS = ("order", "order_groups", "level", "runs", "untested")

@@ -1,11 +1,11 @@
 """The headline claims of GAPS (Tables 1-4), GenSim (Tables 1-2, Figs. 2, 10, 11) and VTO (Table 1, Fig. 4,
-Table 2), each as a relation or a level the committed tables can test (:class:`drapebench.claims.Claim`).
+Table 2), each as a relation or a level the committed tables can test (:class:`drapebench.claim.Claim`).
 The paper's figures are quoted from the papers; the methods' names map as in ``methods/<name>/README.md``
 (SNUG -> snug_like, NCS -> ncs_like, "GAPS (k_ext = 1)" -> gaps_kext1, "No L_inext" -> gaps_no_inext; GenSim's
 unsupervised / supervised -> gensim / gensim_l2, Fig. 10's V1 / V2 / V3 -> gensim_v1 / gensim_v2 / gensim_v3;
 VTO's full model / w/o self-supervision / w/o collision loss -> vae / vae_no_selfsup / vae_no_collision)."""
 
-from drapebench.claims import Claim
+from drapebench.claim import Claim
 
 GARMENTS_T1 = ("tshirt", "dress", "skirt", "gown")  # the paper's Table 1 garments, all in the committed table
 GARMENTS_T2 = ("tshirt", "dress", "skirt")  # the committed Table 2's garments (the gown not run)

@@ -257,7 +257,7 @@ def run(cfg: DictConfig, out_dir: str | Path | None = None) -> dict:
         return record
 
 
-def _reference_train_data(cfg: DictConfig, garment, body, material, seq):
+def reference_train_data(cfg: DictConfig, garment, body, material, seq):
     """TrainData whose training sequences and references are the reference set of ``cfg.data``, built (or
     read from the cache) the first time training asks for them."""
     from drapebench.data import References, TrainData
@@ -284,7 +284,7 @@ def failure_record(cfg: DictConfig, err: BaseException) -> dict:
 def _run(cfg: DictConfig, out: Path) -> dict:
     from drapebench.body import load_body
     from drapebench.body.dataset import build_dataset
-    from drapebench.body.motion_file import sequence_from_config
+    from drapebench.body.motion_source import sequence_from_config
     from drapebench.data import H5Sequences, TrainData
     from drapebench.garments import garment_from_config
     from drapebench.metrics import check_near_origin
@@ -326,7 +326,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     train_cfg = OmegaConf.to_container(cfg.train, resolve=True)
 
     if method_cls.needs_reference:  # a supervised method trains on reference drapes of the `data` preset
-        data = _reference_train_data(cfg, garment, body, material, seq)
+        data = reference_train_data(cfg, garment, body, material, seq)
     else:
         def load_train():
             return H5Sequences(build_dataset(cfg.train.dataset, force=cfg.force))

@@ -75,7 +75,7 @@ def drape_from_run(run_dir: str | Path) -> Drape:
     from omegaconf import OmegaConf
 
     from drapebench.body import load_body
-    from drapebench.body.motion_file import sequence_from_config
+    from drapebench.body.motion_source import sequence_from_config
     from drapebench.garments import garment_from_config
     from drapebench.results import read_prediction
 

@@ -35,7 +35,7 @@ def load_run(run_dir: str | Path) -> TrainedRun:
     FileNotFoundError when the run's checkpoint is no longer in the cache (rerun the run to train it again)."""
     import methods
     from drapebench.body import load_body
-    from drapebench.body.motion_file import sequence_from_config
+    from drapebench.body.motion_source import sequence_from_config
     from drapebench.garments import garment_from_config
     from drapebench.physics import Material
 

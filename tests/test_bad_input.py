@@ -18,7 +18,8 @@ import torch
 from hydra import compose, initialize_config_dir
 
 from drapebench.body import BodySequence, load_body, make_sequence
-from drapebench.body.motion_file import load_motion, sequence_from_config
+from drapebench.body.motion_file import load_motion
+from drapebench.body.motion_source import sequence_from_config
 from drapebench.cache import Cache
 from drapebench.experiment import run, warn_untrained_shape
 from drapebench.garments import garment_from_config, load_garment, make_garment

@@ -10,7 +10,7 @@ from scipy.spatial.transform import Rotation
 
 from drapebench.body import make_sequence
 from drapebench.body.amass import C_MODEL, LAYOUT_NAMES, load_amass, to_smpl_layout
-from drapebench.body.motion_file import sequence_from_config
+from drapebench.body.motion_source import sequence_from_config
 
 AMASS_UPRIGHT = Rotation.from_matrix(C_MODEL).as_rotvec()  # an AMASS root rotation of a person standing upright (+90 deg about X)
 TOLERANCE_M = 1e-5  # float32 rounding of the rotations through the conversion and back
