@@ -32,7 +32,6 @@ TABLES = {
     "gaps_heldout": (["vertex_error_mm", "vertex_error_mm@untrained", "eps_c", "eps_c@postprocessed"], "shape"),
     "gaps_table3": (["eps_e", "eps_a", "eps_c"], "shape"),
     "runtime": (["train_s", "converged_s", "ms_per_frame"], "garment"),
-    "physics": (["eps_e", "eps_c", "penetration_mm", "jitter", "smoothness"], "garment"),
     "vae_table1": (["eps_c", "eps_c_canonical", "sampled_prior_pct", "sampled_codes_pct", "vertex_error_mm", "ms_per_frame"], "case"),
     "runtime_vs_error": (["ms_per_frame", "vertex_error_mm", "eps_e", "eps_a", "eps_c", "train_s"], "garment"),
     "gensim_table2": (["edge_mm", "smoothness", "eps_c", "vertex_error_mm"], "garment"),

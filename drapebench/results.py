@@ -75,7 +75,8 @@ def metric_decimals(name: str) -> int:
 
 def metric_label(name: str) -> str:
     """Table label of a metric column (the name itself when it is not in :data:`METRICS`); a variant's
-    ``<metric>@<variant>`` (:attr:`methods.base.DrapeResult.variants`) is the metric's label with the variant."""
+    ``<metric>@<variant>`` (a drape the method scores beside its own, :meth:`methods.base.DrapingMethod.scored_variants`)
+    is the metric's label with the variant in brackets."""
     base, _, variant = name.partition("@")
     label = METRICS[base].label if base in METRICS else base
     return f"{label} [{variant}]" if variant else label

@@ -23,10 +23,6 @@ class DrapeResult:
     timings_ms: dict[str, float] = field(default_factory=dict)
     extras: dict[str, torch.Tensor] = field(default_factory=dict)
 
-    @property
-    def total_ms(self) -> float:
-        return float(sum(self.timings_ms.values()))
-
 
 @dataclass
 class FitReport:

@@ -57,16 +57,6 @@ def _table() -> np.ndarray:
 JOINT_LIMITS = _table()  # (22, 3, 2) radians: [joint, axis, (min, max)]
 
 
-def joint_limits(joint_names=JOINT_NAMES) -> np.ndarray:
-    """(J, 3, 2) limits for the given joint names (must be names of the 22-joint skeleton)."""
-    idx = []
-    for n in joint_names:
-        if n not in JOINT_NAMES:
-            raise KeyError(f"no joint limits for {n!r}; known joints: {', '.join(JOINT_NAMES)}")
-        idx.append(JOINT_NAMES.index(n))
-    return JOINT_LIMITS[idx]
-
-
 def limit_violation(poses: np.ndarray, tol: float = 1e-6) -> np.ndarray:
     """Per-frame, per-joint, per-axis amount (rad) by which ``poses`` (T, 22, 3) exceed the limits."""
     lo, hi = JOINT_LIMITS[..., 0], JOINT_LIMITS[..., 1]

@@ -62,16 +62,6 @@ class Binding:
     pin: torch.Tensor
 
 
-@dataclass
-class ArapFrame:
-    """One frame of the ARAP stage, in the front-aligned body frame: deformed vertices (V, 3) m, handle
-    mask (V,) bool (pins included), body motion d (V, 3) m at each vertex's canonical closest vertex."""
-
-    vertices: torch.Tensor
-    handles: torch.Tensor
-    motion: torch.Tensor
-
-
 def bind(template: torch.Tensor, canonical_body: torch.Tensor, pins: torch.Tensor) -> Binding:
     """Alg. 2 lines 2 and 4 for a template (V, 3) on the canonical body vertices (Vb, 3)."""
     nu = nearest_indices(template[None], canonical_body[None])[0]
