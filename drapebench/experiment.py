@@ -15,7 +15,7 @@ import logging
 import os
 import shutil
 import time
-from functools import cache, partial
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +27,7 @@ from drapebench.body.dataset import dataset_hash
 from drapebench.cache import PROJECT_ROOT, Cache, atomic_write, body_key, content_hash, forcing, write_json
 from drapebench.errors import DrapeFailed, NonFiniteDrape
 from drapebench.results import METRICS, environment, git_commit, headline, write_prediction
+from drapebench.scene import Scene
 from drapebench.schema import check_keys
 from drapebench.train.checkpoint import write_losses
 
@@ -63,7 +64,8 @@ def job_threads(cfg: DictConfig) -> int:
     return max(1, cores // parallel)
 
 
-def _method_class(cfg: DictConfig):
+def method_class(cfg: DictConfig):
+    """The method class a config names (``method.impl``, else ``method.name``); ValueError naming the choices."""
     import methods
 
     impl = cfg.method.impl or cfg.method.name
@@ -188,19 +190,6 @@ def _evaluate(cfg: DictConfig, garment, seq, body, prediction, reference, materi
     return EVALUATIONS.get_or_build(path, build, write, read, force=bool(cfg.force))
 
 
-def _reference(cfg: DictConfig, garment, seq, body, material):
-    """Physics-based drape (T, V, 3) of the test sequence (cached by drapebench.reference), or None."""
-    ref = OmegaConf.to_container(cfg.reference, resolve=True)
-    solver = ref.pop("solver")
-    if solver is None:
-        return None
-    from drapebench.reference import simulate_record
-
-    rec = simulate_record(garment, seq, body, material, solver, force=bool(cfg.force), **ref)
-    log.info("reference %s: %s", solver, f"loaded from {rec.path}" if rec.from_cache else f"simulated in {rec.sim_s:.1f} s")
-    return rec.vertices.to(garment.vertices.dtype)
-
-
 RUN_FILES = ("metrics.json", "failed.json", "frames.csv", "prediction.h5", "drape.rrd", "losses.csv", "evaluations.csv",
              "losses.png", "export", "env.json", "config.yaml")  # what a run writes into its folder (losses.png: the report's; export/: a folder)
 
@@ -257,22 +246,6 @@ def run(cfg: DictConfig, out_dir: str | Path | None = None) -> dict:
         return record
 
 
-def reference_train_data(cfg: DictConfig, garment, body, material, seq):
-    """TrainData whose training sequences and references are the reference set of ``cfg.data``, built (or
-    read from the cache) the first time training asks for them."""
-    from drapebench.data import References, TrainData
-    from drapebench.data.reference_set import load_reference_set
-
-    @cache
-    def reference_set():
-        refs = load_reference_set(cfg.data, garment, body, material, force=bool(cfg.force))
-        log.info("%s", refs.summary())
-        return refs
-
-    return TrainData(body=body, material=material, garment=garment, load_train=lambda: reference_set().sequences, test_sequences=[seq],
-                     references=References(lambda g, s: reference_set().references().get(g, s)))  # fmt: skip
-
-
 def failure_record(cfg: DictConfig, err: BaseException) -> dict:
     """The ``failed.json`` record of a run of ``cfg`` that raised ``err``: the scene, the error and its message."""
     return {"status": "failed", "method": cfg.method.name, "garment": cfg.garment.kind, "motion": cfg.motion.name,
@@ -283,12 +256,6 @@ def failure_record(cfg: DictConfig, err: BaseException) -> dict:
 
 def _run(cfg: DictConfig, out: Path) -> dict:
     from drapebench.body import load_body
-    from drapebench.body.dataset import build_dataset
-    from drapebench.body.motion_source import sequence_from_config
-    from drapebench.data import H5Sequences, TrainData
-    from drapebench.garments import garment_from_config
-    from drapebench.metrics import check_near_origin
-    from drapebench.physics import Material
 
     t_start = time.perf_counter()
     viz = getattr(cfg.viz, "name", cfg.viz)  # a VizMode member once validated by the schema
@@ -301,37 +268,25 @@ def _run(cfg: DictConfig, out: Path) -> dict:
         require_usd()  # before the drape, not after it
     torch.set_num_threads(job_threads(cfg))
     torch.manual_seed(int(cfg.seed))
-    method_cls = _method_class(cfg)  # fail fast on an unknown method
+    method_cls = method_class(cfg)  # fail fast on an unknown method
     stages = {}
     t = time.perf_counter()
-    dtype = getattr(torch, getattr(cfg.dtype, "name", cfg.dtype))  # a Precision member once validated by the schema
-    body = load_body(cfg.body.name, dtype=dtype, device=cfg.device)
-    check_device(method_cls, cfg.method.name, body.device)
-    material = Material.from_config(OmegaConf.to_container(cfg.material, resolve=True))
-    m = cfg.motion
-    seq = sequence_from_config(OmegaConf.to_container(m, resolve=True), body)
-    if dtype != torch.float64 or cfg.reference.solver is not None:  # refused before any drape (the simulator is float32)
-        check_near_origin(seq.trans, "motion's root")
-    garment = garment_from_config(OmegaConf.to_container(cfg.garment, resolve=True), body, seq.betas).in_dtype(dtype)
+    scene = Scene.from_config(cfg)
+    check_device(method_cls, cfg.method.name, scene.device)
+    body, material, seq, garment, dtype = scene.body, scene.material, scene.seq, scene.garment, scene.dtype
     stages["scene_s"] = time.perf_counter() - t
     log.info("scene: %s (%d vertices) on %s, %s (%d frames) in %.1f s", garment.kind, garment.n_vertices, body.name, seq.name,
              seq.n_frames, stages["scene_s"])  # fmt: skip
 
     t = time.perf_counter()
-    reference = _reference(cfg, garment, seq, body, material)
+    reference = scene.reference()
     if reference is not None:
         stages["reference_s"] = time.perf_counter() - t
 
     method = method_cls(OmegaConf.to_container(cfg.method.params, resolve=True))
     train_cfg = OmegaConf.to_container(cfg.train, resolve=True)
 
-    if method_cls.needs_reference:  # a supervised method trains on reference drapes of the `data` preset
-        data = reference_train_data(cfg, garment, body, material, seq)
-    else:
-        def load_train():
-            return H5Sequences(build_dataset(cfg.train.dataset, force=cfg.force))
-
-        data = TrainData(body=body, material=material, garment=garment, load_train=load_train, test_sequences=[seq])
+    data = scene.train_data(method)
     t = time.perf_counter()
     train_s, ckpt = _checkpoint(method, cfg, garment, data, train_cfg, log_dir=out)
     stages["fit_s"] = time.perf_counter() - t
@@ -352,7 +307,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     summary.update(method.diagnostics(garment, seq, result))  # method-specific measurements, e.g. the VAE's canonical collisions
     stages["eval_s"] = time.perf_counter() - t
     record = {
-        "method": cfg.method.name, "garment": cfg.garment.kind, "motion": m.name, "body": cfg.body.name,
+        "method": cfg.method.name, "garment": cfg.garment.kind, "motion": cfg.motion.name, "body": cfg.body.name,
         "shape": shape_label(seq.betas), "dtype": str(dtype).removeprefix("torch."), "reference": cfg.reference.solver or "none", "n_vertices": garment.n_vertices, "n_frames": seq.n_frames, **summary,
         "ms_per_frame": drape_ms_per_frame(result.timings_ms, drape_s, seq.n_frames), "train_s": train_s,
         "setup_s": result.timings_ms.get("setup", 0.0) / 1e3,

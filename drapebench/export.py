@@ -69,31 +69,28 @@ class Drape:
 
 
 def drape_from_run(run_dir: str | Path) -> Drape:
-    """The drape of a finished run: ``prediction.h5`` and the scene its ``config.yaml`` rebuilds (body, motion, garment;
-    cached). Raises FileNotFoundError for a folder that is not a run, ValueError when the rebuilt garment or motion
-    does not match the prediction (the code or the input files changed since the run)."""
+    """The drape of a finished run: ``prediction.h5`` on the scene its ``config.yaml`` rebuilds
+    (:meth:`drapebench.scene.Scene.from_config`: body, motion, garment in the run's dtype; on the CPU). Raises
+    FileNotFoundError for a folder that is not a run, ValueError when the rebuilt garment or motion does not match the
+    prediction (the code or the input files changed since the run)."""
     from omegaconf import OmegaConf
 
-    from drapebench.body import load_body
-    from drapebench.body.motion_source import sequence_from_config
-    from drapebench.garments import garment_from_config
     from drapebench.results import read_prediction
+    from drapebench.scene import Scene
 
     run_dir = Path(run_dir)
     missing = [n for n in ("prediction.h5", "config.yaml") if not (run_dir / n).exists()]
     if missing:
         raise FileNotFoundError(f"{run_dir} has no {' or '.join(missing)}: give the folder of a finished run (it prints it at the end)")
     vertices, faces, attrs = read_prediction(run_dir / "prediction.h5")
-    cfg = OmegaConf.load(run_dir / "config.yaml")
-    body = load_body(cfg.body.name)
-    seq = sequence_from_config(OmegaConf.to_container(cfg.motion, resolve=True), body)
-    garment = garment_from_config(OmegaConf.to_container(cfg.garment, resolve=True), body, seq.betas)
+    scene = Scene.from_config(OmegaConf.load(run_dir / "config.yaml"), device="cpu")
+    garment, seq = scene.garment, scene.seq
     if garment.faces.shape != faces.shape or not np.array_equal(garment.faces.numpy(), faces) or seq.n_frames != len(vertices):
         raise ValueError(f"{run_dir}: its config.yaml rebuilds a {garment.n_vertices}-vertex garment on {seq.n_frames} frames, "
                          f"prediction.h5 holds {vertices.shape[1]} vertices on {len(vertices)} frames: the code or an input file "
                          "changed since the run; run it again with export=usd (or obj, pc2)")  # fmt: skip
     label = f"{attrs.get('method')} {attrs.get('garment')} on {attrs.get('motion')} ({attrs.get('body')})"
-    return Drape.from_scene(torch.from_numpy(vertices), garment, seq, body, label)
+    return Drape.from_scene(torch.from_numpy(vertices).to(scene.dtype), garment, seq, scene.body, label)
 
 
 def require_usd() -> None:

@@ -190,10 +190,12 @@ def input_roughness(method, graph, G: torch.Tensor, d: torch.Tensor, body_vertic
 def compare_runs(arap_dir: str, pen_dir: str) -> str:
     """:func:`strain_change` and :func:`displacement_parts` from the run ``arap_dir`` (gensim_arap) to the run
     ``pen_dir`` (gensim) of the same garment and motion, over the frames after the transition, as text."""
-    from drapebench.results import read_prediction
-    from drapebench.trained_run import load_run
+    from omegaconf import OmegaConf
 
-    run = load_run(arap_dir)  # the scene (garment, motion) of both runs; nothing to load
+    from drapebench.results import read_prediction
+    from drapebench.scene import Scene
+
+    run = Scene.from_config(OmegaConf.load(Path(arap_dir) / "config.yaml"))  # the scene (garment, motion) of both runs
     n0 = run.seq.n_transition
     before, after = (torch.from_numpy(read_prediction(Path(d) / "prediction.h5")[0][n0:]) for d in (arap_dir, pen_dir))
     parts = displacement_parts(before, after, run.garment.topology)

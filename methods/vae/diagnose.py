@@ -58,12 +58,10 @@ def retrained_error(run_dir: Path, regressor: dict, seed: int) -> float:
     (the run's VAE and training data kept)."""
     from omegaconf import OmegaConf
 
-    from drapebench.experiment import reference_train_data
-
     run = load_run(run_dir)
     m, seq, garment = run.method, run.seq, run.garment
     m.p["regressor"] = {**m.p["regressor"], **regressor}
-    seqs, X = m.training_garments(garment, reference_train_data(run.cfg, garment, run.body, run.material, seq))
+    seqs, X = m.training_garments(garment, run.train_data(m))
     train_cfg = {k: v for k, v in OmegaConf.to_container(run.cfg.train, resolve=True).items() if k not in ("dataset", "log_dir")}
     m.fit_regressor(seqs, X, {**train_cfg, "seed": int(seed)})
     reference, start = run.reference(), int(seq.n_transition)
