@@ -1,8 +1,9 @@
 """Registry of draping methods: ``methods.get(name)`` returns the class, ``methods.available()`` the names.
 
-Each method lives in its own sub-package and registers with :func:`register`. Ablations that are
-configurations of the same code (e.g. ``gaps_kext1``) are Hydra ``method=`` configs whose
-``name`` field selects the class registered under their ``impl`` name.
+Each method lives in its own sub-package, listed in :data:`_REGISTRY` (imported lazily). A method outside this
+repository needs no entry: its ``conf/method/<name>.yaml`` names it by its import path, ``impl: package.module:Class``
+(the package on the Python path), and :func:`get` imports it. Ablations that are configurations of the same code
+(e.g. ``gaps_kext1``) are Hydra ``method=`` configs whose ``name`` labels the rows and whose ``impl`` names the class.
 """
 
 from __future__ import annotations
@@ -34,13 +35,21 @@ def available() -> list[str]:
 
 
 def get(name: str) -> type[DrapingMethod]:
-    """The method class registered as ``name``; raises KeyError listing valid names."""
+    """The method class registered as ``name``, or the class an import path "package.module:Class" names (a
+    :class:`DrapingMethod` subclass). Raises KeyError listing the registered names for an unknown name, and
+    ImportError / TypeError naming the path for a path that does not lead to a method class."""
+    target = name if ":" in name else _REGISTRY.get(name)
+    if target is None:
+        raise KeyError(f"unknown method {name!r}; available methods: {', '.join(available())} "
+                       "(or method.impl=package.module:Class for a method of your own)")  # fmt: skip
+    module, _, cls_name = target.partition(":")
     try:
-        target = _REGISTRY[name]
-    except KeyError:
-        raise KeyError(f"unknown method {name!r}; available methods: {', '.join(available())}") from None
-    module, cls = target.split(":")
-    return getattr(importlib.import_module(module), cls)
+        cls = getattr(importlib.import_module(module), cls_name)
+    except (ImportError, AttributeError) as err:
+        raise ImportError(f"method.impl={target!r}: {err} (the package must be on the Python path, e.g. PYTHONPATH)") from err
+    if not (isinstance(cls, type) and issubclass(cls, DrapingMethod)):
+        raise TypeError(f"method.impl={target!r} is not a methods.base.DrapingMethod subclass")
+    return cls
 
 
 __all__ = ["DrapeResult", "DrapingMethod", "FitReport", "available", "get", "register"]

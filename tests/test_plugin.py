@@ -1,0 +1,73 @@
+"""A method is one folder and one config file: a toy method written into a temporary folder (its package and its
+``conf/method/<name>.yaml``, nothing in this repository changed) runs through run.py and into a report table."""
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+TOY = '''
+"""The template lifted by ``lift`` m, moved with the root translation: a method of one file."""
+import torch
+
+from methods.base import DrapeResult, DrapingMethod, FitReport
+
+
+class Lifted(DrapingMethod):
+    name = "toy"
+    generic = True
+
+    def __init__(self, cfg=None):
+        super().__init__(cfg)
+        self.lift = float(self.cfg.get("lift", 0.0))
+
+    def fit(self, data, train_cfg=None):
+        self.bind(data.body, data.material)
+        return FitReport()
+
+    def drape(self, garment, seq):
+        self._require_bound()
+        x = garment.vertices.to(self.body.dtype) + torch.tensor([0.0, 0.0, self.lift], dtype=self.body.dtype)
+        return DrapeResult(x[None] + seq.trans[:, None].to(x.dtype), {"copy": 0.0})
+
+    def diagnostics(self, garment, seq, result):
+        return {"toy_lift_mm": 1e3 * self.lift}
+'''
+
+
+def test_a_method_from_a_folder_of_its_own_runs_through_run_py_and_the_report(tmp_path):
+    (tmp_path / "toymethod").mkdir()
+    (tmp_path / "toymethod" / "__init__.py").write_text(textwrap.dedent(TOY))
+    (tmp_path / "conf" / "method").mkdir(parents=True)
+    (tmp_path / "conf" / "method" / "toy.yaml").write_text("name: toy\nimpl: toymethod:Lifted\nparams: {lift: 0.01}\n")
+    env = dict(os.environ, DRAPEBENCH_PROGRESS="0", HYDRA_FULL_ERROR="1", CI="1",
+               PYTHONPATH=os.pathsep.join([str(tmp_path), str(ROOT), os.environ.get("PYTHONPATH", "")]))  # fmt: skip
+    out = tmp_path / "run"
+    p = subprocess.run([sys.executable, str(ROOT / "run.py"), "method=toy", f"hydra.searchpath=[file://{tmp_path / 'conf'}]",
+                        "body=anny_lowres", "motion.n_frames=4", "motion.transition=1", "viz=none", f"hydra.run.dir={out}"],
+                       cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert p.returncode == 0, p.stderr[-3000:]
+    record = json.loads((out / "metrics.json").read_text())
+    assert record["method"] == "toy" and record["toy_lift_mm"] == pytest.approx(10.0)
+    assert record["eps_e"] == pytest.approx(0.0, abs=1e-4)  # the template moved rigidly: no edge changes length
+    p = subprocess.run([sys.executable, "-m", "drapebench.report", str(out), "--table", "baseline", "--out", str(tmp_path / "table")],
+                       cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert p.returncode == 0, p.stderr[-3000:]
+    rows = [line for line in (tmp_path / "table.md").read_text().splitlines() if line.startswith("| toy")]
+    assert len(rows) == 1, (tmp_path / "table.md").read_text()
+
+
+def test_an_import_path_that_is_not_a_method_is_refused_naming_it():
+    import methods
+
+    with pytest.raises(ImportError, match="method.impl='nowhere.at_all:Thing'"):
+        methods.get("nowhere.at_all:Thing")
+    with pytest.raises(TypeError, match="not a methods.base.DrapingMethod subclass"):
+        methods.get("methods.base:DrapeResult")
+    assert methods.get("methods.lbs:LBSMethod") is methods.get("lbs")
