@@ -175,8 +175,9 @@ def test_a_bad_motion_file_fails_naming_the_problem(arrays, message, tmp_path, k
         (lambda p, t: {"poses": p, "fps": 30, "betas": np.array([], dtype=np.float32)}, r"m.npz: betas is empty .*leave betas out"),
         (lambda p, t: {"poses": p, "fps": 30, "betas": np.array(["tall"])}, r"m.npz: betas holds text"),
         (lambda p, t: {"poses": p, "fps": 30, "betas": np.array([True, False])}, r"m.npz: betas holds booleans"),
-        (lambda p, t: {"poses": p, "fps": 30, "betas": np.array([0.0, 300.0])}, r"m.npz: betas: body shape b1=300 is outside \+-5"),
-        (lambda p, t: {"poses": p, "trans": t + [0.0, 0.0, 1000.0], "fps": 30}, r"first frame's root is 1000 m above the rest pose"),
+        (lambda p, t: {"poses": p, "fps": 30, "betas": np.array([0.0, 300.0])}, r"m.npz's betas: body shape b1=300 is outside \+-5"),
+        (lambda p, t: {"poses": p, "trans": t + [0.0, 0.0, 5.0], "fps": 30}, r"first frame's root is 5.0\d* m above the rest pose"),
+        (lambda p, t: {"poses": np.array([p[0], None], dtype=object), "fps": 30}, r"m.npz: poses holds Python objects \(an object array\)"),
     ],
 )
 def test_a_motion_file_with_empty_text_or_boolean_arrays_names_the_file_the_key_and_the_fix(arrays, message, tmp_path, kick, body_lowres):
@@ -191,6 +192,21 @@ def test_a_motion_file_far_from_the_origin_is_moved_to_start_above_it(tmp_path, 
         seq = load_motion(tmp_path / "far.npz", body_lowres, transition=3)
     assert "the root starts at x=1e+04, y=-2.5e+04 m; the motion is moved to start above the origin" in caplog.text
     assert torch.allclose(seq.trans[3:], kick.trans - kick.trans[:1] * torch.tensor([1.0, 1.0, 0.0]), atol=1e-6)  # not 1 mm apart
+
+
+def test_a_slow_centimetre_sway_is_refused_naming_the_unit(tmp_path, body_lowres):
+    """Standing still (pose 0 with a 1 mrad tremor) while the root sways +-2 cm over 3 s, written in centimetres: 4 cm/s,
+    read as 4 m/s, is no fast root, but a +-2 m sway while no joint moves is no human motion in metres."""
+    T, fps = 90, 30.0
+    t = np.arange(T) / fps
+    poses = 1e-3 * np.sin(t)[:, None, None] * np.ones((T, 22, 3))
+    sway = np.stack([0.02 * np.sin(2 * np.pi * t / 3), np.zeros(T), 0.005 * np.cos(2 * np.pi * t / 3)], 1)  # metres
+    np.savez(tmp_path / "cm.npz", poses=poses, trans=100 * sway, fps=fps)
+    with pytest.raises(ValueError, match=r"cm.npz: the root travels .* m while no joint moves more than .* relative to it, implausible "
+                                         r"for body anny_lowres \(1.70 m tall\); trans looks like centimetres: divide it by 100"):  # fmt: skip
+        load_motion(tmp_path / "cm.npz", body_lowres)
+    np.savez(tmp_path / "m.npz", poses=poses, trans=sway, fps=fps)
+    assert load_motion(tmp_path / "m.npz", body_lowres, transition=0).trans.abs().max() < 0.03  # the same sway in metres
 
 
 def test_unreadable_or_missing_motion_files(tmp_path, body_lowres):
@@ -268,7 +284,7 @@ def test_bad_motion_settings_fail(motion, message, body_lowres):
         sequence_from_config(m, body_lowres)
 
 
-def test_a_body_shape_beyond_five_standard_deviations_is_refused_before_anything_is_built(body_lowres, monkeypatch, kick):
+def test_a_body_shape_beyond_five_standard_deviations_is_refused_before_anything_is_built(body_lowres, monkeypatch, kick, tmp_path):
     import drapebench.garments.factory as factory
     from drapebench.body.model import MAX_ABS_BETA, BodyShapeOutOfRange
 
@@ -277,12 +293,14 @@ def test_a_body_shape_beyond_five_standard_deviations_is_refused_before_anything
 
     monkeypatch.setattr(factory, "_build", no_build)
     monkeypatch.setattr(factory, "signed_distance_grid", no_build)
-    with pytest.raises(BodyShapeOutOfRange, match=r"body shape b1=-400 is outside \+-5 standard deviations.*e.g. motion.betas="):
+    with pytest.raises(BodyShapeOutOfRange, match=r"^betas: body shape b1=-400 is outside \+-5 standard deviations.*Give betas within"):
         make_garment("skirt", body_lowres, betas=[0.0, -400.0])
-    with pytest.raises(BodyShapeOutOfRange, match="b0=6"):
+    with pytest.raises(BodyShapeOutOfRange, match="^garment.betas: body shape b0=6"):
         garment_from_config({"kind": "tshirt", "betas": "motion", "params": {}}, body_lowres, [6.0])
+    with pytest.raises(BodyShapeOutOfRange, match=r"^garment.betas: body shape b1=-7 is outside .* Give garment.betas within"):
+        run(_compose(["body=anny_lowres", "viz=none", "motion.n_frames=2", "garment.betas=[0,-7]"]), tmp_path / "run")
     m = {"name": "walk", "n_frames": 4, "fps": 30.0, "transition": 0, "seed": 0, "betas": [0.0, 0.0, 1e3], "params": {}}
-    with pytest.raises(BodyShapeOutOfRange, match="b2=1000"):
+    with pytest.raises(BodyShapeOutOfRange, match="^motion.betas: body shape b2=1000"):
         sequence_from_config(m, body_lowres)
     with pytest.raises(BodyShapeOutOfRange, match=r"b3=-5.5"):
         body_lowres.forward(torch.tensor([[0.0, 0.0, 0.0, -5.5]]), kick.poses[:1])

@@ -35,7 +35,7 @@ import numpy as np
 import torch
 from scipy.spatial.transform import Rotation
 
-from drapebench.body.motion_file import check_axis_angle, motion_sequence, numeric_array, read_motion_file
+from drapebench.body.motion_file import check_axis_angle, check_root_units, motion_sequence, numeric_array, read_motion_file
 from drapebench.body.sequence import DEFAULT_TRANSITION, BodySequence
 
 log = logging.getLogger("drapebench")
@@ -258,7 +258,8 @@ def load_amass(path: str | Path, body, fps: float | None = 30.0, start: int = 0,
     ``fps``; None: to the end), ``source_fps`` the file's frame rate when it has none (or to override it),
     ``up_axis`` the file's world up ("z": AMASS, "y"), ``root`` "ground" or "file", ``betas`` the body's shape (None:
     the mean; the file's SMPL betas are not this body's), ``transition`` frames blending from the rest pose.
-    Raises ValueError naming the file, the key and the fix (layout, missing keys, NaN, frame rate, frame range).
+    Raises ValueError naming the file, the key and the fix (layout, missing keys, NaN, frame rate, frame range, a
+    translation in centimetres: :func:`drapebench.body.motion_file.check_root_units`, before ``root`` moves it).
     """
     path = Path(path)
     source = str(path)
@@ -283,14 +284,11 @@ def load_amass(path: str | Path, body, fps: float | None = 30.0, start: int = 0,
     fps = file_fps if fps is None else float(fps)
     if not (np.isfinite(fps) and fps > 0):
         raise ValueError(f"motion.fps must be a finite number > 0 frames per second (null: the file's), got {fps}")
-    try:
-        body.full_betas(betas)  # before the body is posed with them (root=ground)
-    except ValueError as err:
-        raise type(err)(f"motion.betas: {err}") from None
+    body.full_betas(betas, key="motion.betas")  # before the body is posed with them (root=ground)
     index = _joint_map(body, joints, layout, source)
     _check_up_axis(poses, up_axis, source)
     _warn_dropped(poses, joints, body, layout, source)
-    file_betas = np.asarray(d.get("betas", 0.0), dtype=np.float64).reshape(-1)
+    file_betas = numeric_array(d["betas"], "betas", source).reshape(-1) if "betas" in d else np.zeros(0)
     if np.any(file_betas != 0):
         gender = np.asarray(d.get("gender", "")).reshape(-1)[0]
         gender = f" (gender {gender.decode() if isinstance(gender, bytes) else gender})" if gender else ""
@@ -299,6 +297,7 @@ def load_amass(path: str | Path, body, fps: float | None = 30.0, start: int = 0,
                     f"motion.betas={list(betas)}" if betas is not None else "its mean shape (set motion.betas=[...] for another)")  # fmt: skip
     poses, trans = _slerp_resample(poses, trans, file_fps, fps, int(start), n_frames, source)
     poses, trans = _to_body(poses, trans, body, index, parents, up_axis)
+    check_root_units(poses, trans, body, source)  # before root=ground would move a root 90 m up to the floor
     if root == "ground":
         trans = _ground(poses, trans, body, betas)
     params = {"source": source, "layout": layout, "source_fps": file_fps, "start": int(start), "up_axis": up_axis, "root": root}

@@ -138,24 +138,28 @@ class BodyModel(torch.nn.Module):
         except ValueError:
             raise KeyError(f"unknown joint {name!r}; valid joints: {', '.join(self.joint_names)}") from None
 
-    def full_betas(self, betas=None, note: bool = False) -> torch.Tensor:
+    def full_betas(self, betas=None, note: bool = False, key: str = "betas") -> torch.Tensor:
         """The one rule for shape coefficients: (..., S') betas (None = mean) -> (..., S) float on the body's
-        dtype/device, S = :attr:`n_betas`. Fewer than S are zero-padded (logged when ``note``); more, or NaN/Inf,
-        raise ValueError naming the count and the fix; any beyond +-:data:`MAX_ABS_BETA` standard deviations
-        raise :class:`BodyShapeOutOfRange` (before anything is built on them)."""
+        dtype/device, S = :attr:`n_betas`. Fewer than S are zero-padded (logged when ``note``); more, NaN/Inf or
+        values that are no numbers raise ValueError naming the count and the fix; any beyond +-:data:`MAX_ABS_BETA`
+        standard deviations raise :class:`BodyShapeOutOfRange` (before anything is built on them). Every message
+        starts with ``key``, where the user gave the betas (``garment.betas``, ``motion.betas``, a file's key)."""
         if betas is None:
             return torch.zeros(self.n_betas, dtype=self.dtype, device=self.device)
-        betas = torch.as_tensor(betas, dtype=self.dtype, device=self.device)
+        try:
+            betas = torch.as_tensor(betas, dtype=self.dtype, device=self.device)
+        except (TypeError, ValueError) as err:
+            raise ValueError(f"{key}: {betas!r} are not numbers ({err}); give a list of numbers, e.g. [1.0,-0.5]") from None
         if betas.dim() == 0 or betas.shape[-1] > self.n_betas:
             got = 1 if betas.dim() == 0 else betas.shape[-1]
-            raise ValueError(f"{got} betas given; body {self.name} has {self.n_betas} shape coefficients: give at most "
-                             f"{self.n_betas} (fewer are zero-padded), e.g. motion.betas=[1.0,-0.5]")  # fmt: skip
-        _check_finite(betas, "betas")
-        _check_shape_range(betas, self.name)
+            raise ValueError(f"{key}: {got} betas given; body {self.name} has {self.n_betas} shape coefficients: give at most "
+                             f"{self.n_betas} (fewer are zero-padded), e.g. [1.0,-0.5]")  # fmt: skip
+        _check_finite(betas, key)
+        _check_shape_range(betas, self.name, key)
         n = betas.shape[-1]
         if n < self.n_betas:
             if note and n:
-                logging.getLogger("drapebench").info("%d betas given; zero-padded to body %s's %d", n, self.name, self.n_betas)
+                logging.getLogger("drapebench").info("%s: %d betas given; zero-padded to body %s's %d", key, n, self.name, self.n_betas)
             betas = torch.nn.functional.pad(betas, (0, self.n_betas - n))
         return betas
 
@@ -284,8 +288,9 @@ def _check_finite(t: torch.Tensor, what: str) -> None:
         raise ValueError(f"{what} contains NaN or Inf (first bad indices {bad}); clean the input first")
 
 
-def _check_shape_range(betas: torch.Tensor, body: str) -> None:
-    """Raise :class:`BodyShapeOutOfRange` naming the components of betas (..., S) beyond +-MAX_ABS_BETA."""
+def _check_shape_range(betas: torch.Tensor, body: str, key: str = "betas") -> None:
+    """Raise :class:`BodyShapeOutOfRange` naming ``key`` (where the user gave them) and the components of betas
+    (..., S) beyond +-MAX_ABS_BETA."""
     peak = betas.detach().abs().reshape(-1, betas.shape[-1]).amax(0) if betas.numel() else betas.new_zeros(0)
     over = torch.nonzero(peak > MAX_ABS_BETA).flatten().tolist()
     if over:
@@ -293,10 +298,10 @@ def _check_shape_range(betas: torch.Tensor, body: str) -> None:
         worst = values.gather(0, values.abs().argmax(0, keepdim=True))[0]
         shown = ", ".join(f"b{k}={float(worst[k]):g}" for k in over)
         raise BodyShapeOutOfRange(
-            f"body shape {shown} is outside +-{MAX_ABS_BETA:g} standard deviations, where {body}'s shape space stops "
+            f"{key}: body shape {shown} is outside +-{MAX_ABS_BETA:g} standard deviations, where {body}'s shape space stops "
             f"being a human body (anny at b0 = -5 / +5 is 1.25 / 2.16 m tall; beyond, the shape space extrapolates into "
-            f"ever smaller or larger meshes with folded faces: data/bodies/PROVENANCE.md). Give betas within +-{MAX_ABS_BETA:g}, "
-            "e.g. motion.betas=[2.0,-1.0]"
+            f"ever smaller or larger meshes with folded faces: data/bodies/PROVENANCE.md). Give {key} within "
+            f"+-{MAX_ABS_BETA:g}, e.g. [2.0,-1.0]"
         )
 
 

@@ -9,7 +9,6 @@ child; optional ``trans`` (T, 3) root translation in metres (default zero), ``be
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import math
 import pickle
@@ -26,6 +25,11 @@ from drapebench.body.motions import smoothstep
 from drapebench.body.sequence import DEFAULT_TRANSITION, BodySequence
 
 MAX_ROOT_SPEED = 15.0  # m/s; a faster root is taken for a translation in centimetres or millimetres
+MAX_ROOT_HEIGHT = 5.0  # body heights: a root whose median height (trans z) is beyond it is taken for another unit
+MAX_TRAVEL = 10.0  # a root travelling farther than this many times the most any joint moves relative to it, plus
+#                    one body height, is taken for another unit (walking or running, the root travels about as far)
+UNITS = (("centimetres", 100.0), ("millimetres", 1000.0))  # the units checked for, smallest first
+SCALE_SAMPLES = 4096  # frames (evenly spaced) posed to measure how far the joints move
 FIXES = {
     "poses": "give (T, J, 3) or (T, 3J) axis-angle rotations in radians, as float numbers",
     "trans": "give (T, 3) root translations in metres, as float numbers, or leave trans out (no translation)",
@@ -43,7 +47,7 @@ def numeric_array(value, key: str, source: str) -> np.ndarray:
     if a.dtype.kind == "b":
         raise ValueError(f"{source}: {key} holds booleans ({a.dtype}), not numbers; {fix}")
     if a.dtype.kind not in "iuf":
-        what = {"U": "text", "S": "bytes (text)", "O": "Python objects", "c": "complex numbers"}.get(a.dtype.kind, f"{a.dtype} values")
+        what = {"U": "text", "S": "bytes (text)", "O": "Python objects (an object array)", "c": "complex numbers"}.get(a.dtype.kind, f"{a.dtype} values")
         raise ValueError(f"{source}: {key} holds {what} ({a.dtype}), not numbers; {fix}")
     if a.size == 0:
         raise ValueError(f"{source}: {key} is empty (shape {a.shape}); {fix}")
@@ -53,7 +57,8 @@ def numeric_array(value, key: str, source: str) -> np.ndarray:
 def read_motion_file(path: str | Path, needs: str = "poses (T, J, 3) axis-angle [, trans (T, 3), betas (S,), fps]") -> dict:
     """The arrays of a motion file (``.npz``, ``.h5``/``.hdf5`` or ``.pkl``; numpy): ``poses`` and whatever else it
     holds. ``needs`` describes the expected content in the error for a file without ``poses``. Entries of an
-    ``.npz`` that only load as Python objects (allow_pickle) are left out."""
+    ``.npz`` that only load as Python objects (allow_pickle) are not loaded: they read as ``None`` (an object array,
+    which :func:`numeric_array` names)."""
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"motion file {path} does not exist (motion.path must name an .npz, .h5 or .pkl file)")
@@ -65,8 +70,10 @@ def read_motion_file(path: str | Path, needs: str = "poses (T, J, 3) axis-angle 
             with np.load(path, allow_pickle=False) as z:
                 d = {}
                 for k in z.files:
-                    with contextlib.suppress(ValueError):  # an object array (needs pickle): not an array we read
+                    try:
                         d[k] = z[k]
+                    except ValueError:  # an object array (needs pickle): not loaded, reported if it is read
+                        d[k] = np.array(None, dtype=object)
         elif suffix == ".pkl":
             d = read_pickle(path)
         else:
@@ -113,6 +120,40 @@ def check_poses(poses: np.ndarray, body, source: str) -> np.ndarray:
     return poses.astype(np.float32)
 
 
+def check_root_units(poses: np.ndarray, trans: np.ndarray, body, source: str) -> None:
+    """Raise ValueError naming the likely unit and the fix when the root translation ``trans`` (T, 3) (Z up; body
+    poses (T, J, 3) axis-angle) is implausible in metres for ``body``'s scale H (its rest height): a median root
+    height |z| above :data:`MAX_ROOT_HEIGHT` H, or a root path longer than :data:`MAX_TRAVEL` times the longest path
+    of a joint relative to the root, plus H (a metres-wide sway while the limbs barely move). The unit named is the
+    first of :data:`UNITS` in which the motion is plausible. Paths are measured on at most
+    :data:`SCALE_SAMPLES` evenly spaced frames."""
+    with torch.no_grad():
+        rest = body.shaped()[0][0, :, 2]
+        height = float(rest.max() - rest.min())
+        step = max(1, -(-len(poses) // SCALE_SAMPLES))
+        joints = body.forward(None, torch.as_tensor(np.asarray(poses[::step])).to(body.device, body.dtype), skin=False).joints
+        rel = (joints - joints[:, :1]).double().cpu()
+        limbs = float((rel[1:] - rel[:-1]).norm(dim=-1).sum(0).max()) if len(rel) > 1 else 0.0
+
+    def problem(t: np.ndarray) -> str | None:
+        level = float(np.abs(np.median(t[:, 2])))
+        if level > MAX_ROOT_HEIGHT * height:
+            return f"the root's median height (trans z) is {level:.4g} m"
+        travel = float(np.linalg.norm(np.diff(t[::step], axis=0), axis=1).sum())
+        if travel > MAX_TRAVEL * limbs + height:
+            return f"the root travels {travel:.4g} m while no joint moves more than {limbs:.3g} m relative to it"
+        return None
+
+    found = problem(trans)
+    if found is None:
+        return
+    unit = next(((u, f) for u, f in UNITS if problem(trans / f) is None), None)
+    fix = (f"trans looks like {unit[0]}: divide it by {unit[1]:g}" if unit else
+           "trans must be metres: divide it by 100 (centimetres) or 1000 (millimetres)")  # fmt: skip
+    raise ValueError(f"{source}: {found}, implausible for body {body.name} ({height:.2f} m tall); {fix} (trans is the root "
+                     "translation in metres)")  # fmt: skip
+
+
 def load_motion(path: str | Path, body, fps: float | None = None, betas=None, n_frames: int | None = None,
                 transition: int = DEFAULT_TRANSITION, name: str | None = None) -> BodySequence:  # fmt: skip
     """A user's motion file (see the module docstring) as a test :class:`BodySequence` on ``body``.
@@ -123,7 +164,7 @@ def load_motion(path: str | Path, body, fps: float | None = None, betas=None, n_
     (in float64, logged) so that its first frame's root stands above the origin: a horizontal shift changes
     no metric, and far from the origin float32 could not resolve the garment. Raises ValueError naming the
     file, the key and the fix (no poses, an empty array, text or booleans, wrong joint count, degrees,
-    centimetres, a root far above or below the rest pose, fewer than 2 frames, no or a non-finite fps).
+    centimetres (:func:`check_root_units`, or a root faster than :data:`MAX_ROOT_SPEED`), a root far above or below the rest pose, fewer than 2 frames, no or a non-finite fps).
     """
     path = Path(path)
     d = read_motion_file(path)
@@ -148,13 +189,14 @@ def load_motion(path: str | Path, body, fps: float | None = None, betas=None, n_
         if not 2 <= n_frames <= T:
             raise ValueError(f"motion.n_frames={n_frames}: {path} has {T} frames; give 2..{T} or null for all")
         poses, trans = poses[:n_frames], trans[:n_frames]
+    check_root_units(poses, trans, body, str(path))
     start = trans[0, :2].copy()
     if start.any():
         trans[:, :2] -= start
         log.info("%s: the root starts at x=%.4g, y=%.4g m; the motion is moved to start above the origin", path, *start)
     betas_source = "motion.betas"
     if betas is None and "betas" in d:
-        betas, betas_source = numeric_array(d["betas"], "betas", str(path)).reshape(-1), f"{path}: betas"
+        betas, betas_source = numeric_array(d["betas"], "betas", str(path)).reshape(-1), f"{path}'s betas"
     return motion_sequence(poses, trans, fps, body, betas, transition, name or path.stem, "file", {"source": str(path)}, betas_source)
 
 
@@ -182,10 +224,7 @@ def motion_sequence(poses: np.ndarray, trans: np.ndarray, fps: float, body, beta
     s = smoothstep(np.arange(transition) / max(transition, 1))[:, None]
     poses = np.concatenate([s[..., None] * poses[:1], poses]).astype(np.float32)
     trans = np.concatenate([s * trans[:1], trans]).astype(np.float32)
-    try:
-        full = body.full_betas(betas, note=True).float().cpu()
-    except ValueError as err:
-        raise type(err)(f"{betas_source}: {err}") from None
+    full = body.full_betas(betas, note=True, key=betas_source).float().cpu()
     return BodySequence(
         name=name, motion=motion, betas=full, poses=torch.from_numpy(poses),
         trans=torch.from_numpy(trans), fps=fps, split="test", n_transition=transition, params=params,

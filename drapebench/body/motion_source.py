@@ -38,6 +38,6 @@ def sequence_from_config(m: dict, body) -> BodySequence:
     if int(m["n_frames"]) + int(m["transition"]) < 2:
         raise ValueError(f"motion.n_frames={m['n_frames']} with transition={m['transition']} gives fewer than 2 frames; "
                          "a motion needs at least 2 (velocities): raise motion.n_frames")  # fmt: skip
-    betas = None if m.get("betas") is None else body.full_betas(m["betas"], note=True).float().cpu()
+    betas = None if m.get("betas") is None else body.full_betas(m["betas"], note=True, key="motion.betas").float().cpu()
     return make_sequence(name, int(m["n_frames"]), float(m["fps"]), int(m["seed"]), betas=betas,
                          transition=int(m["transition"]), split="test", **m.get("params", {}))  # fmt: skip

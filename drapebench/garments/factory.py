@@ -243,7 +243,9 @@ def garment_from_config(g: dict, body, sequence_betas=None) -> Garment:
         if g.get(key) is not None:
             raise ValueError(f"garment.{key} is read only by garment=obj (a user's file), not by garment={g['kind']}; "
                              f"use python run.py garment=obj garment.path=/path/to/garment.obj")  # fmt: skip
-    return make_garment(g["kind"], body, betas=_garment_betas(g.get("betas"), sequence_betas), seed=int(g.get("seed", 0)),
+    betas = _garment_betas(g.get("betas"), sequence_betas)
+    body.full_betas(betas, key="garment.betas")  # refused naming the key the user typed
+    return make_garment(g["kind"], body, betas=betas, seed=int(g.get("seed", 0)),
                         **g.get("params", {}))  # fmt: skip
 
 

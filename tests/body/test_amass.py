@@ -144,6 +144,7 @@ def _bad(d, kind):
         "NaN frame rate": {**{k: v for k, v in d.items() if k != "mocap_framerate"}, "mocap_frame_rate": np.array(np.nan)},
         "degrees": {**d, "poses": np.degrees(d["poses"])},
         "centimetres": {**d, "trans": d["trans"] * 100 + np.arange(T)[:, None]},
+        "text betas": {**d, "betas": np.array(["tall", "slim"])},
         "one frame": {**d, "poses": d["poses"][:1], "trans": d["trans"][:1]},
         "short trans": {**d, "trans": d["trans"][:-1]},
     }[kind]
@@ -161,7 +162,8 @@ def _bad(d, kind):
         ("zero frame rate", r"m.npz: mocap_framerate = 0.0; a frame rate must be a number > 0 .*motion.source_fps=120"),
         ("NaN frame rate", r"m.npz: mocap_frame_rate = nan; a frame rate must be a number > 0"),
         ("degrees", r"poses must be axis-angle in radians \(degrees\? multiply by pi/180\)"),
-        ("centimetres", r"trans must be metres \(centimetres\? divide by 100\)"),
+        ("centimetres", r"m.npz: the root's median height \(trans z\) is .* m, implausible for body anny_lowres .*; trans looks like centimetres: divide it by 100"),
+        ("text betas", r"m.npz: betas holds text \(<U4\), not numbers"),
         ("one frame", r"m.npz has 1 frame\(s\); a motion needs at least 2"),
         ("short trans", r"trans has shape \(47, 3\); expected \(48, 3\) metres"),
     ],
@@ -210,3 +212,21 @@ def test_motion_betas_out_of_range_are_named_as_the_config_key_not_the_file(tmp_
         load_amass(path, body_lowres, betas=[0.0, 300.0])
     with pytest.raises(ValueError, match="finite number > 0"):
         load_amass(path, body_lowres, fps=float("inf"))
+
+
+def test_a_slow_centimetre_motion_is_refused_naming_the_unit_before_root_ground_moves_it(body_lowres, tmp_path):
+    """A person standing (pose 0) with the root 90 cm up and swaying +-2 cm over 4 s, written in centimetres: no root
+    is fast (3 cm/s, read as 3 m/s), but a root 90 m above the floor, or a +-2 m sway of a body whose limbs do not
+    move, is no human motion in metres. root=ground would have moved the 90 m down to the floor."""
+    T, fps = 120, 30.0
+    t = np.arange(T) / fps
+    trans_m = np.stack([0.02 * np.sin(np.pi * t / 2), 0.01 * np.cos(np.pi * t / 2), np.full(T, 0.9)], 1)
+    pose = np.zeros((T, 72))
+    pose[:, :3] = AMASS_UPRIGHT
+    for scale, unit in ((100.0, "centimetres: divide it by 100"), (1000.0, "millimetres: divide it by 1000")):
+        path = _save(tmp_path / f"sway{scale:g}.npz", {"poses": pose, "trans": trans_m * scale, "mocap_framerate": np.array(fps)})
+        for root in ("ground", "file"):
+            with pytest.raises(ValueError, match=rf"sway{scale:g}.npz: the root's median height .* implausible for body .*; trans looks like {unit}"):
+                load_amass(path, body_lowres, root=root, transition=0)
+    seq = load_amass(_save(tmp_path / "metres.npz", {"poses": pose, "trans": trans_m, "mocap_framerate": np.array(fps)}), body_lowres, transition=0)
+    assert seq.n_frames == T  # the same motion in metres is a motion
