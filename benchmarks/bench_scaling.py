@@ -94,6 +94,7 @@ def _write(points, out: Path) -> None:
     import pandas as pd
 
     from drapebench.cache import atomic_write
+    from drapebench.table_file import write_csv
     from drapebench.report import save_figure
     from drapebench.results import git_commit
 
@@ -122,9 +123,7 @@ def _write(points, out: Path) -> None:
             f"this table and the plot from the measured points.\n")  # fmt: skip
     with atomic_write(out.with_suffix(".md"), "w") as f:
         f.write(text)
-    with atomic_write(out.with_suffix(".csv"), "w") as f:
-        f.write(f"# {produced}\n# {scene}\n")
-        df.to_csv(f, index=False)
+    write_csv(out.with_suffix(".csv"), [produced, scene], df, index=False)
     import matplotlib
 
     matplotlib.use("Agg")

@@ -25,6 +25,7 @@ from drapebench.cache import atomic_write
 from drapebench.garments import make_garment
 from drapebench.physics import Material
 from drapebench.results import git_commit
+from drapebench.table_file import write_csv
 from methods.vae.descriptor import motion_descriptor
 from methods.vae.network import GarmentVAE, PoseDescriptor, Regressor
 
@@ -67,9 +68,7 @@ def write_table(rows: list[dict], out: Path, device: str, frames: int) -> None:
              "the diffused body model's projection of the canonical garment; paper: VTO Table 2 on a GTX 1080 Ti.")  # fmt: skip
     with atomic_write(out.with_suffix(".md"), "w") as f:
         f.write(f"# vae_table2 (VTO Table 2)\n\n{df.to_markdown(floatfmt='.2f')}\n\n" + "\n\n".join(about) + "\n")
-    with atomic_write(out.with_suffix(".csv"), "w") as f:
-        f.write("".join(f"# {line}\n" for line in about))
-        df.to_csv(f, float_format="%.3f")
+    write_csv(out.with_suffix(".csv"), about, df, float_format="%.3f")
 
 
 def sync(device: str) -> None:

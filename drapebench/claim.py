@@ -10,8 +10,13 @@ from dataclasses import dataclass, field
 class Claim:
     """One headline claim. ``kind``: "order" (every ``greater`` pair (a, b) has a's ``metric`` above b's in every
     group of ``groups``; a dict maps a group to its own pairs), "order_groups" (``row``'s ``metric`` in group a above
-    group b for every ``greater`` pair (a, b)), "level" (``row``'s ``metric`` at most ``bound`` in
-    every group), "runs" (``row`` has a number in every group) or "untested" (``why``: what it needs)."""
+    group b for every ``greater`` pair (a, b)), "level" (``row``'s ``metric`` at most ``bound`` in every group),
+    "within" (``row``'s ``metric`` in every group at most ``bound`` times its value in group ``reference``) or
+    "untested" (``why``: what it needs).
+
+    ``control``: the rows put in place of ``credited`` (the row the claim credits: ``row``, or the lower row of
+    every pair), or {row: row} maps of rows put in place of the claim's, to see whether something that is not the
+    method meets the claim as well; ``control_why`` says why a claim has none."""
 
     id: str
     source: str  # paper, table or figure
@@ -24,7 +29,22 @@ class Claim:
     row: str = ""
     bound: float = float("inf")
     groups: tuple = ()
+    reference: str = ""  # "within": the group the others are compared with
+    bound_metric: str = ""  # "level": a metric of the row whose value is added to the bound in each group
+    control: tuple = ()
+    control_why: str = ""
+    credited: str = ""
     comparable: bool = True  # False: an absolute level on a scene unlike the paper's (indicative only)
     command: str = ""
     why: str = ""
     notes: tuple = field(default_factory=tuple)
+
+    def credited_row(self) -> str:
+        """The row the claim credits: ``credited``, ``row``, or the lower row that every ``greater`` pair names."""
+        if self.credited or self.row:
+            return self.credited or self.row
+        pairs = [p for ps in self.greater.values() for p in ps] if isinstance(self.greater, dict) else list(self.greater)
+        common = set.intersection(*({b} for _, b in pairs)) if pairs else set()
+        if len(common) != 1:
+            raise ValueError(f"claim {self.id}: name the row it credits (credited=...): its pairs' lower rows differ")
+        return common.pop()

@@ -1,23 +1,29 @@
 """The claims scoreboard: each headline claim of the three papers, tested against the committed tables.
 
-``python -m drapebench.report --claims`` reads the CSVs in ``reports/`` (and their ``_gpu`` twins, made with
-``device=cuda train=paper``) and writes ``reports/claims.md``: per claim the paper's figure, ours (mean ± std
-over seeds where a cell has several), a verdict by the rules in :data:`RULES`, and the table and experiment
-behind it. The output depends on the CSVs alone, so a test regenerates it and compares.
+``python -m drapebench.report --claims`` reads the tables the claims name in ``reports/`` (and their ``_gpu``
+twins, made with ``device=cuda train=paper``), strictly (:mod:`drapebench.table_file`), and writes
+``reports/claims.md``: per claim the paper's figure, ours (mean ± std over seeds where a cell has several), the
+claim's control, a verdict by the rules of :data:`RULES`, and the table and experiment behind it. The verdicts
+depend on the CSVs and on the methods' code the rows were run with (:mod:`drapebench.staleness`); claims.md
+records the code fingerprints it was judged against, so a test regenerates it and compares.
 """
 
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from drapebench.cache import atomic_write
 from drapebench.claim import Claim
+from drapebench.staleness import current_code, stale_rows
+from drapebench.table_file import read_csv
 
-CELL = re.compile(r"^\s*(-?[\d.]+(?:e-?\d+)?)(?:\s*±\s*([\d.]+(?:e-?\d+)?))?(?:\s*\(n=(\d+)\))?\s*$")
+CELL = re.compile(r"^\s*(-?[\d.]+(?:e[-+]?\d+)?)(?:\s*±\s*([\d.]+(?:e[-+]?\d+)?))?(?:\s*\(n=(\d+)\))?\s*$")
+NO_SEEDS = 10**6  # the seed count of a paper's bound: exact, no spread
 
 
 @dataclass(frozen=True)
@@ -32,7 +38,11 @@ class Value:
     def text(self) -> str:
         """The value as the claims table shows it: 3 significant digits, "± std (n=k)" over seeds."""
         mean = f"{self.mean:,.0f}" if abs(self.mean) >= 1000 else f"{self.mean:.3g}"
-        return mean + (f" ± {self.std:.2g} (n={self.n})" if self.n > 1 else "")
+        return mean + (f" ± {self.std:.2g} (n={self.n})" if 1 < self.n < NO_SEEDS else "")
+
+    def spread(self) -> float:
+        """The half-width of the value's band: its std over seeds, 0 for one seed or an exact bound."""
+        return self.std if 1 < self.n < NO_SEEDS else 0.0
 
 
 def parse_cell(cell) -> Value | None:
@@ -48,45 +58,121 @@ def parse_cell(cell) -> Value | None:
 @dataclass
 class Table:
     """A committed table read from its CSV: cells keyed by (row, column group, metric label) (group "" for a
-    table without groups), its groups in order and its provenance line."""
+    table without groups), its groups in order, the commits of its provenance line and, where it names them, the
+    commits of each row."""
 
     name: str
     cells: dict
     groups: list
     commits: list
+    row_commits: dict = field(default_factory=dict)
 
     def get(self, row: str, group: str, metric: str) -> Value | None:
         """The parsed cell, None where the table lacks it or it holds no number."""
         return parse_cell(self.cells.get((row, group, metric), "–"))
 
+    def rows(self) -> list:
+        """The table's rows, in order."""
+        return list(dict.fromkeys(r for r, _, _ in self.cells))
+
 
 def read_table(path: Path) -> Table:
-    """A table's CSV (``#`` provenance lines, then a one- or two-row header) as a :class:`Table`."""
-    lines = path.read_text().splitlines()
-    comments = [line for line in lines if line.startswith("#")]
-    commits = re.search(r"commit\(?s?\)? ([0-9a-f, -]+?)(?: on |\.|$)", comments[0]) if comments else None
-    commits = [c.strip()[:7] for c in commits.group(1).split(",")] if commits else []
-    grouped = len(lines) > len(comments) + 1 and lines[len(comments) + 1].startswith("metric,")
-    df = pd.read_csv(path, comment="#", header=[0, 1] if grouped else 0, index_col=0, dtype=str)
-    cells, groups = {}, []
-    for col in df.columns:
-        group, metric = col if grouped else ("", col)
-        groups.append(group)
-        for row, v in df[col].items():
-            cells[(str(row), group, metric)] = v
-    return Table(path.stem, cells, list(dict.fromkeys(groups)), commits)
+    """A table's CSV (``#`` provenance lines, a one- or two-row header, a checksum footer) as a :class:`Table`;
+    raises :class:`drapebench.table_file.TableError` naming the file and line of anything it cannot trust."""
+    f = read_csv(path)
+    commits = re.search(r"commit\(?s?\)? ([0-9a-f, -]+?)(?: on |\.|$)", f.comments[0]) if f.comments else None
+    commits = [c.strip() for c in commits.group(1).split(",")] if commits else []
+    mixed = next((c for c in f.comments if c.startswith("**Mixed commits**")), "")
+    row_commits = {m.group(1): [c.strip() for c in m.group(2).split(",")]
+                   for m in re.finditer(r"([\w.-]+) ([0-9a-f]{7,40}(?:, [0-9a-f]{7,40})*)(?=;|\.$)", mixed.split(": ", 1)[-1])}  # fmt: skip
+    metrics = f.header[-1]
+    groups = f.header[0] if len(f.header) == 2 else [""] * len(metrics)
+    cells = {(cells[0], groups[j], metrics[j]): cells[j] for _, cells in f.rows for j in range(1, len(cells))}
+    return Table(Path(path).stem, cells, list(dict.fromkeys(groups[1:])), commits, row_commits)
 
 
-KINDS = ("order", "order_groups", "level", "runs", "untested")
+KINDS = ("order", "order_groups", "level", "within", "untested")
+VERDICTS = ("reproduced", "holds, one seed", "holds, control not run", "partly", "scene-determined", "inside the spread",
+            "too small to tell", "not reproduced", "stale", "not run", "not testable here")  # fmt: skip
 RULES = (
-    "**reproduced**: the relation holds in every case (group x metric) and, where a cell has several seeds, the "
-    "two mean ± std bands do not overlap (a level: mean + std within the bound); "
-    "**holds, inside the spread**: it holds on the means but some bands overlap; "
-    "**holds, one seed**: it holds but a cell has a single seed, so its spread is unknown; "
-    "**partly (k/m)**: it holds in k of m cases; **not reproduced**: it holds in none; "
-    "**not run**: a cell it needs is missing or failed; **not testable here**: no committed table can test it "
-    "(what it needs is said). A level on a scene unlike the paper's is marked *indicative*."
+    "A claim is tested case by case (a group x metric x pair of rows; cases with the same numbers, a quantity that "
+    "does not depend on the group, count once). A case **holds** when its relation holds on the means, the two bands "
+    "mean ± std over seeds do not overlap (a level: the band stays under the bound) and the difference is at least "
+    "the metric's resolution floor (below); a case whose bands overlap is a **tie**, one whose difference is under the "
+    "floor is **too small to tell**, and neither counts. Every claim names its **control** (lbs, the method's untrained "
+    "or ARAP stage, or its loss's optimum, put in place of the row the claim credits); a case the control holds as "
+    "well is credited to the scene, not the method. Verdicts: **reproduced**: every case holds for the method and "
+    "not for the control, each cell over several seeds; **holds, one seed**: the same with a one-seed cell (spread "
+    "unknown); **holds, control not run**: it holds but the table has no control row; **partly (k/m)**: k of m "
+    "distinct cases hold (and not for the control); **scene-determined**: the cases that hold, the control holds "
+    "too; **inside the spread**: no case holds or fails beyond the bands; **too small to tell**: every difference is "
+    "under the floor; **not reproduced**: no case holds and one holds the other way; **stale: ...**: a row it reads "
+    "comes from another commit than its table's or from method code that has changed since (the verdict its rows "
+    "would give follows; it can hold, never reproduce); **not run**: a cell it needs is missing or failed; **not "
+    "testable here**: no committed table can test it (what it needs is said). A level on a scene unlike the paper's "
+    "is marked *indicative*."
 )
+
+
+def resolution_floors(tables: dict) -> dict:
+    """{(table, metric label): (floor, cells, identical)} and {metric label: (...)}: a metric's floor in a table is
+    the median seeds' std of its multi-seed cells there that have a spread (what two seeds of one method typically
+    differ by on that scene), with the number of such cells and of cells whose seeds gave identical values
+    (deterministic rows: a rerun repeats the number exactly). The metric's own entry pools every CPU table of
+    ``tables`` (name -> :class:`Table`), for a table without multi-seed cells of it; a metric with none is absent
+    (floor 0)."""
+    spreads: dict = {}
+    for name, t in tables.items():
+        if name.endswith("_gpu"):
+            continue
+        for (_, _, metric), cell in t.cells.items():
+            v = parse_cell(cell)
+            if v is not None and v.n > 1:
+                for key in ((name, metric), metric):
+                    spreads.setdefault(key, []).append(v.std)
+    out = {}
+    for key, s in spreads.items():
+        moving = [x for x in s if x > 0]
+        if moving:
+            out[key] = (float(np.median(moving)), len(moving), len(s) - len(moving))
+    return out
+
+
+def floor_of(floors: dict, table: str, metric: str) -> float:
+    """The resolution floor of ``metric`` in ``table`` (:func:`resolution_floors`; {key: floor}), 0 where none was
+    measured."""
+    return floors.get((table, metric), floors.get(metric, 0.0))
+
+
+@dataclass(frozen=True)
+class Case:
+    """One comparison of a claim: ``hi`` (a row, or "bound") above ``lo``, at ``where``."""
+
+    where: str
+    metric: str
+    hi: str
+    lo: str
+    vhi: Value
+    vlo: Value
+
+    def key(self) -> tuple:
+        """What makes two cases the same numbers."""
+        same = lambda v: (v.mean, v.std if 1 < v.n < NO_SEEDS else None, v.n)  # noqa: E731
+        return (self.metric, self.hi, self.lo, same(self.vhi), same(self.vlo))
+
+    def outcome(self, floor: float) -> str:
+        """"holds", "against" (the other way, beyond bands and floor), "tie" (the bands overlap) or "small" (the
+        difference is under ``floor``)."""
+        d = self.vhi.mean - self.vlo.mean
+        if abs(d) < floor or d == 0:
+            return "small"
+        apart = self.vhi.mean - self.vhi.spread() > self.vlo.mean + self.vlo.spread() if d > 0 else \
+            self.vlo.mean - self.vlo.spread() > self.vhi.mean + self.vhi.spread()  # fmt: skip
+        return ("holds" if d > 0 else "against") if apart else "tie"
+
+    def seeds(self) -> int:
+        """The fewest seeds behind the case's cells."""
+        return min(self.vhi.n, self.vlo.n)
 
 
 def _pairs(claim: Claim, group: str) -> list:
@@ -98,80 +184,161 @@ def _groups(claim: Claim, table: Table) -> list:
         return list(claim.groups)
     if isinstance(claim.greater, dict):
         return [g for g in table.groups if g in claim.greater] if "*" not in claim.greater else table.groups
-    return table.groups
+    groups = table.groups
+    return [g for g in groups if g != claim.reference] if claim.kind == "within" else groups
 
 
-def evaluate(claim: Claim, table: Table | None) -> tuple[str, str]:
-    """(ours, verdict) of ``claim`` on ``table``: the values per case and the verdict by :data:`RULES`."""
-    if claim.kind not in KINDS:
-        raise ValueError(f"claim {claim.id}: unknown kind {claim.kind!r}; kinds: {', '.join(KINDS)}")
-    if claim.kind == "untested":
-        return "–", f"not testable here: {claim.why}"
-    if table is None:
-        return "–", "not run"
-    cases, shown = [], []
-    if claim.kind == "order_groups":  # one row's value compared across column groups
+def cases(claim: Claim, table: Table, sub: dict | None = None) -> tuple[list, list]:
+    """(the claim's :class:`Case` list on ``table``, the cells it needs that are missing), with the rows of
+    ``sub`` ({row: row}) put in place of the claim's (a case whose two sides become one row is None, so that
+    the list stays aligned with the claim's own)."""
+    sub = sub or {}
+    r = lambda x: sub.get(x, x)  # noqa: E731
+    out, missing = [], []
+
+    def get(row, group, metric):
+        v = table.get(row, group, metric)
+        if v is None:
+            missing.append(f"{row} on {' '.join(x for x in (group, metric) if x) or 'the table'}")
+        return v
+
+    if claim.kind == "order_groups":
         for metric in claim.metrics:
-            vals = {g: table.get(claim.row, g, metric) for p in claim.greater for g in p}
-            if any(v is None for v in vals.values()):
-                return "–", f"not run ({claim.row} on {', '.join(g for g, v in vals.items() if v is None)})"
             for a, b in claim.greater:
-                holds = vals[a].mean > vals[b].mean
-                cases.append((holds, holds and vals[a].mean - _s(vals[a]) > vals[b].mean + _s(vals[b]), min(vals[a].n, vals[b].n)))
-            shown.append(f"{claim.row} {metric}: " + " ; ".join(f"{b} {vals[b].text()} {'<' if vals[a].mean > vals[b].mean else '≥'} {a} {vals[a].text()}"
-                                                               for a, b in claim.greater))  # fmt: skip
-        return "; ".join(shown), _verdict(cases, claim)
+                va, vb = get(r(claim.row), a, metric), get(r(claim.row), b, metric)
+                if va and vb:
+                    out.append(Case(f"{r(claim.row)} {metric}", metric, a, b, va, vb))
+        return out, missing
     for group in _groups(claim, table):
         for metric in claim.metrics:
             where = " ".join(x for x in (group, metric if len(claim.metrics) > 1 else "") if x)
             if claim.kind == "order":
-                pairs = _pairs(claim, group)
-                vals = {r: table.get(r, group, metric) for p in pairs for r in p}
-                if any(v is None for v in vals.values()):
-                    return "–", f"not run ({', '.join(r for r, v in vals.items() if v is None)} on {where or 'the table'})"
-                for a, b in pairs:
-                    va, vb = vals[a], vals[b]
-                    holds = va.mean > vb.mean
-                    apart = holds and va.mean - _s(va) > vb.mean + _s(vb)
-                    cases.append((holds, apart, min(va.n, vb.n)))
-                chain = " ; ".join(f"{a} {vals[a].text()} {'>' if vals[a].mean > vals[b].mean else '≤'} {b} {vals[b].text()}" for a, b in pairs)
-                shown.append(f"{where}: {chain}" if where else chain)
-            else:
-                v = table.get(claim.row, group, metric)
-                if v is None:
-                    return "–", f"not run ({claim.row} on {where or 'the table'})"
-                if claim.kind == "runs":
-                    cases.append((True, True, v.n))
-                    shown.append(f"{where} {v.text()}")
+                for a, b in _pairs(claim, group):
+                    if r(a) == r(b):
+                        out.append(None)
+                        continue
+                    va, vb = get(r(a), group, metric), get(r(b), group, metric)
+                    if va and vb:
+                        out.append(Case(where, metric, r(a), r(b), va, vb))
+                continue
+            v = get(r(claim.row), group, metric)
+            bound = claim.bound
+            if claim.kind == "within" or claim.bound_metric:
+                ref = get(r(claim.row), claim.reference, metric) if claim.kind == "within" else get(r(claim.row), group, claim.bound_metric)
+                if ref is None:
                     continue
-                holds = v.mean <= claim.bound
-                cases.append((holds, holds and v.mean + _s(v) <= claim.bound, v.n))
-                shown.append(f"{where} {v.text()}".strip())
-    if not cases:
-        return "–", "not run (the table has none of the claim's groups)"
-    return "; ".join(shown), _verdict(cases, claim)
+                bound = claim.bound * ref.mean if claim.kind == "within" else claim.bound + ref.mean
+            if v:
+                out.append(Case(where, metric, "bound", r(claim.row), Value(bound, 0.0, NO_SEEDS), v))
+    return out, missing
 
 
-def _s(v: Value) -> float:
-    return v.std if v.n > 1 else 0.0
+def _case_text(c: Case, claim: Claim, verdict: str) -> str:
+    mark = {"tie": " [tie]", "small": " [too small]"}.get(verdict, "")
+    if claim.kind == "order_groups":
+        return f"{c.lo} {c.vlo.text()} {'<' if c.vhi.mean > c.vlo.mean else '≥'} {c.hi} {c.vhi.text()}{mark}"
+    if c.hi == "bound":
+        how = f" ({claim.bound:g} x {claim.reference})" if claim.kind == "within" else f" ({claim.bound:g} + {claim.bound_metric})" if claim.bound_metric else ""
+        bound = f"{c.vhi.mean:.3g}{how}"
+        return f"{c.where} {c.vlo.text()} {'≤' if c.vlo.mean <= c.vhi.mean else '>'} {bound}{mark}".strip()
+    return f"{c.hi} {c.vhi.text()} {'>' if c.vhi.mean > c.vlo.mean else '≤'} {c.lo} {c.vlo.text()}{mark}"
 
 
-def _verdict(cases: list, claim: Claim) -> str:
-    held = sum(h for h, _, _ in cases)
-    if held == 0:
+@dataclass
+class Judgement:
+    """A claim's reading: ``ours`` (the values per case), ``control`` (what the control gives), ``verdict`` and
+    ``stale`` ({row: why})."""
+
+    ours: str
+    verdict: str
+    control: str = "–"
+    stale: dict = field(default_factory=dict)
+
+
+def evaluate(claim: Claim, table: Table | None, floors: dict | None = None, code: dict | None = None) -> Judgement:
+    """The :class:`Judgement` of ``claim`` on ``table`` by :data:`RULES`; ``floors``: {(table, metric label) or
+    metric label: floor} (:func:`floor_of`); ``code``: {impl: fingerprint} the rows' code is judged against (default: the working
+    tree's)."""
+    if claim.kind not in KINDS:
+        raise ValueError(f"claim {claim.id}: unknown kind {claim.kind!r}; kinds: {', '.join(KINDS)}")
+    if claim.kind == "untested":
+        return Judgement("–", f"not testable here: {claim.why}")
+    if table is None:
+        return Judgement("–", "not run")
+    floors = floors or {}
+    found, missing = cases(claim, table)
+    if missing:
+        return Judgement("–", f"not run ({', '.join(dict.fromkeys(missing))})")
+    if not found:
+        return Judgement("–", "not run (the table has none of the claim's groups)")
+    distinct = list({c.key(): c for c in found}.values())
+    outcome = {c.key(): c.outcome(floor_of(floors, table.name, c.metric)) for c in distinct}
+    shown = _shown(found, claim, outcome)
+    if len(distinct) < len(found):
+        shown += f" ({len(found)} cases, {len(distinct)} distinct: the others repeat the same numbers)"
+    held = [c for c in distinct if outcome[c.key()] == "holds"]
+    control_held, control_text = _control(claim, table, found, floors)
+    k = len([c for c in held if c.key() not in (control_held or set())])
+    m = len(distinct)
+    outcomes = [outcome[c.key()] for c in distinct]
+    if k == m and control_held is None:
+        verdict = "holds, control not run"
+    elif k == m:
+        verdict = "reproduced" if all(c.seeds() > 1 for c in distinct) else "holds, one seed"
+    elif k > 0:
+        verdict = f"partly ({k}/{m})"
+    elif "against" in outcomes:
         verdict = "not reproduced"
-    elif held < len(cases):
-        verdict = f"partly ({held}/{len(cases)})"
-    elif any(n < 2 for _, _, n in cases):
-        verdict = "holds, one seed"
-    elif all(a for _, a, _ in cases):
-        verdict = "reproduced"
+    elif held:
+        verdict = f"scene-determined (the control holds {len(held)}/{m} as well)"
+    elif all(o == "small" for o in outcomes):
+        verdict = "too small to tell"
     else:
-        verdict = "holds, inside the spread"
-    return verdict if claim.comparable else f"{verdict} (*indicative*: scene unlike the paper's)"
+        verdict = "inside the spread"
+    controls = {r for c in claim.control for r in ([c] if isinstance(c, str) else c.values())}
+    rows = {x for c in found for x in (c.hi, c.lo) if x != "bound"} | controls
+    stale = stale_rows(sorted(rows & set(table.rows())), table.row_commits, table.commits, code)
+    if stale:
+        verdict = f"stale: {verdict}"
+    if not claim.comparable:
+        verdict += " (*indicative*: scene unlike the paper's)"
+    return Judgement(shown, verdict, control_text, stale)
 
 
-VERDICTS = ("reproduced", "holds, inside the spread", "holds, one seed", "partly", "not reproduced", "not run", "not testable here")
+def _shown(found: list, claim: Claim, outcome: dict) -> str:
+    parts: dict = {}
+    for c in found:
+        head = "" if claim.kind == "order_groups" or c.hi == "bound" else c.where
+        parts.setdefault(c.where if claim.kind == "order_groups" else head, []).append(_case_text(c, claim, outcome[c.key()]))
+    return "; ".join(f"{w}: {' ; '.join(t)}" if w else " ; ".join(t) for w, t in parts.items())
+
+
+def _control(claim: Claim, table: Table, own: list, floors: dict) -> tuple[set | None, str]:
+    """(the keys of the cases of ``own`` (the claim's cases, in order) that a control row holds as well, None when
+    no control row of the table has the cells to tell; the control's cell text)."""
+    if not claim.control:
+        return set(), f"none: {claim.control_why}"
+    subs = [c if isinstance(c, dict) else {claim.credited_row(): c} for c in claim.control]
+    present = [sub for sub in subs if set(sub.values()) <= set(table.rows())]
+    if not present:
+        return None, f"{_names(claim.control)}: not in the table"
+    held, texts, evaluated = set(), [], False
+    for sub in present:
+        control = _names([sub]) if len(sub) > 1 else next(iter(sub.values()))
+        theirs, missing = cases(claim, table, sub)
+        if missing:
+            texts.append(f"{control}: not run ({missing[0]})")
+            continue
+        mine = [c.key() for c, t in zip(own, theirs) if t is not None and t.outcome(floor_of(floors, table.name, t.metric)) == "holds"]
+        held |= set(mine)
+        evaluated = True
+        checked = {c.key() for c, t in zip(own, theirs) if t is not None}
+        texts.append(f"{control} holds {len(set(mine))}/{len(checked)}")
+    return held if evaluated else None, "; ".join(texts)
+
+
+def _names(controls) -> str:
+    return ", ".join(c if isinstance(c, str) else " and ".join(f"{v} for {k}" for k, v in c.items()) for c in controls)
 
 
 def verdict_class(verdict: str) -> str:
@@ -179,9 +346,39 @@ def verdict_class(verdict: str) -> str:
     return next(v for v in VERDICTS if verdict.startswith(v))
 
 
-def render(claims: list[Claim], reports: Path) -> str:
-    """``claims.md``'s text: the scoreboard over the CSVs in ``reports`` and their ``_gpu`` twins."""
-    tables = {p.stem: read_table(p) for p in sorted(reports.glob("*.csv"))}
+def claim_tables(claims: list, reports: Path) -> dict:
+    """{name: :class:`Table`} of the committed tables ``claims`` name (and their ``_gpu`` twins) in ``reports``."""
+    names = {c.table for c in claims if c.table}
+    paths = [p for n in sorted(names) for p in (reports / f"{n}.csv", reports / f"{n}_gpu.csv") if p.exists()]
+    return {p.stem: read_table(p) for p in paths}
+
+
+def verdict_counts(claims: list, reports: Path, code: dict | None = None) -> pd.Series:
+    """The number of claims per verdict class, largest first."""
+    return _judge(claims, reports, code)[1]
+
+
+def _judge(claims: list, reports: Path, code: dict | None):
+    tables = claim_tables(claims, reports)
+    floors = resolution_floors(tables)
+    judged = [evaluate(c, tables.get(c.table), {k: f for k, (f, _, _) in floors.items()}, code) for c in claims]
+    counts = pd.Series([verdict_class(j.verdict) for j in judged], dtype=object).value_counts()
+    return judged, counts, tables, floors
+
+
+def counts_line(counts: pd.Series, total: int) -> str:
+    """"Verdicts: 3 reproduced, ... (of N claims)."."""
+    return "Verdicts: " + ", ".join(f"{v} {k}" for k, v in counts.items()) + f" (of {total} claims)."
+
+
+CODE_LINE = "Rows judged against the methods' code with fingerprints: "
+
+
+def render(claims: list[Claim], reports: Path, code: dict | None = None) -> str:
+    """``claims.md``'s text: the scoreboard over the tables in ``reports`` and their ``_gpu`` twins, staleness
+    judged against ``code`` ({impl: fingerprint}; default: the working tree's)."""
+    code = code or current_code()
+    judged, counts, tables, floors = _judge(claims, reports, code)
     lines = [
         "# Claims scoreboard",
         "",
@@ -190,30 +387,51 @@ def render(claims: list[Claim], reports: Path) -> str:
         "(`train=cpu`); *GPU* the same experiment with `device=cuda train=paper` (tables suffixed `_gpu`). "
         "A value \"m ± s (n=k)\" is a mean and std over k training seeds; a bare value is one seed.",
         "",
-        "| claim | paper | ours (CPU budget) | verdict | GPU (`train=paper`) | table, command |",
-        "|---|---|---|---|---|---|",
+        "| claim | paper | ours (CPU budget) | control | verdict | GPU (`train=paper`) | table, command |",
+        "|---|---|---|---|---|---|---|",
     ]
     notes = []
-    for c in claims:
-        ours, verdict = evaluate(c, tables.get(c.table))
+    fl = {k: f for k, (f, _, _) in floors.items()}
+    for c, j in zip(claims, judged):
         gpu = tables.get(f"{c.table}_gpu")
         gpu_cell = "–"
         if gpu is not None and c.kind != "untested":
-            gpu_ours, gpu_verdict = evaluate(c, gpu)
-            gpu_cell = f"{gpu_verdict}: {gpu_ours}"
+            g = evaluate(c, gpu, fl, code)
+            gpu_cell = f"{g.verdict}: {g.ours}"
         src = tables.get(c.table)
         link = f"[{c.table}]({c.table}.md)" if src else (f"{c.table} (not committed)" if c.table else "–")
         if src and len(src.commits) > 1:
             link += f", rows from {len(src.commits)} commits"
         cmd = f"<br>`{c.command}`" if c.command else ""
-        lines.append(f"| **{c.id}** ({c.source}): {c.claim} | {c.paper} | {ours} | {verdict} | {gpu_cell} | {link}{cmd} |")
+        lines.append(f"| **{c.id}** ({c.source}): {c.claim} | {c.paper} | {j.ours} | {j.control} | {j.verdict} | {gpu_cell} | {link}{cmd} |")
         notes += [f"- {c.id}: {n}" for n in c.notes]
-    counts = pd.Series([verdict_class(evaluate(c, tables.get(c.table))[1]) for c in claims]).value_counts()
-    lines += ["", "Verdicts: " + ", ".join(f"{v} {k}" for k, v in counts.items()) + f" (of {len(claims)} claims).", "",
-              f"Rules. {RULES}", ""]  # fmt: skip
+        notes += [f"- {c.id}: stale row {row}: {why}." for row, why in j.stale.items()]
+    lines += ["", counts_line(counts, len(claims)), "", f"Rules. {RULES}", "",
+              "Resolution floors (per table and metric: the median seeds' std of its multi-seed cells with a spread, "
+              "what two seeds of one method typically differ by on that scene, measured from the committed CPU tables "
+              "each time this file is generated; a table without such cells uses the metric's median over all of them; "
+              "in brackets the cells measured and the cells whose seeds gave identical values, deterministic rows that "
+              "a rerun repeats exactly): " + _floors_text(floors) + ".", "",
+              CODE_LINE + ", ".join(f"{k} {v}" for k, v in sorted(code.items())) + " (drapebench.staleness).", ""]  # fmt: skip
     if notes:
         lines += ["Notes:", *notes, ""]
     return "\n".join(lines)
+
+
+def _floors_text(floors: dict) -> str:
+    by_table: dict = {}
+    for key, (f, n, z) in floors.items():
+        table, metric = key if isinstance(key, tuple) else ("all tables", key)
+        by_table.setdefault(table, []).append(f"{metric} {f:.2g} ({n}, {z})")
+    return "; ".join(f"{t}: {', '.join(sorted(ms))}" for t, ms in sorted(by_table.items(), key=lambda x: (x[0] == "all tables", x[0])))
+
+
+def recorded_code(text: str) -> dict:
+    """The {impl: fingerprint} a claims.md text was judged against (its :data:`CODE_LINE`)."""
+    line = next((x for x in text.splitlines() if x.startswith(CODE_LINE)), None)
+    if line is None:
+        raise ValueError(f"no line starting {CODE_LINE!r}: regenerate claims.md")
+    return dict(part.split() for part in line[len(CODE_LINE):].split(" (drapebench")[0].split(", "))
 
 
 def write_claims(reports: Path, out: Path | None = None) -> Path:
@@ -225,3 +443,4 @@ def write_claims(reports: Path, out: Path | None = None) -> Path:
     with atomic_write(out, "w") as f:
         f.write(render(CLAIMS, reports))
     return out
+

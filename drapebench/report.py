@@ -22,6 +22,7 @@ import pandas as pd
 
 from drapebench.cache import PROJECT_ROOT, atomic_write
 from drapebench.results import METRICS, SUMMARY_COLUMNS, legend, metric_decimals, metric_label
+from drapebench.table_file import write_csv
 from drapebench.train.convergence import converged_seconds
 
 # table name -> (metrics shown, what the column groups are)
@@ -632,9 +633,7 @@ def write_table(dirs, name: str, out: Path, command: str | None = None, methods:
     comment = "".join(f"{{c}} {line}\n" for line in header)
     with atomic_write(paths[1], "w") as f:
         f.write(comment.format(c="%") + t.style.to_latex(hrules=True, multicol_align="c"))
-    with atomic_write(paths[2], "w") as f:
-        f.write(comment.format(c="#"))
-        t.to_csv(f)
+    write_csv(paths[2], header, t)
     (pareto_plot if name == "runtime_vs_error" else runtime_plot)(df, paths[3], title=name)
     if name in BAR_FIGURES:
         paths.append(metric_bars_plot(df, BAR_FIGURES[name], out.parent / f"{out.name}_bars.png", title=name))

@@ -1,14 +1,24 @@
-"""The claims scoreboard: cell parsing, the verdict rules, and reports/claims.md kept in step with the CSVs."""
+"""The claims scoreboard: cell parsing, the verdict rules (ties, controls, floors, copies, stale rows), strict
+table reading, and reports/claims.md kept in step with the committed CSVs."""
 
 import math
+import subprocess
 from pathlib import Path
 
 import pytest
 
-from drapebench.claims import Claim, evaluate, parse_cell, read_table, render, verdict_class
+from drapebench.claims import (KINDS, Claim, evaluate, parse_cell, read_table, recorded_code, render, resolution_floors,
+                               verdict_class)  # fmt: skip
 from drapebench.claims_catalogue import CLAIMS
+from drapebench.staleness import current_code
+from drapebench.table_file import TableError, read_csv, seal, verified_text
 
-REPORTS = Path(__file__).resolve().parent.parent / "reports"
+ROOT = Path(__file__).resolve().parent.parent
+REPORTS = ROOT / "reports"
+
+
+def _git(*args) -> str:
+    return subprocess.run(["git", "-C", str(ROOT), *args], capture_output=True, text=True, check=True).stdout.strip()
 
 
 def test_cells_parse_to_mean_std_over_seeds_and_n():
@@ -17,76 +27,217 @@ def test_cells_parse_to_mean_std_over_seeds_and_n():
     assert (v.mean, v.std, v.n) == (2.5, 0.5, 3)
     one = parse_cell("0.070 ± 0.154")  # one seed: the ± is over frames, not a seed spread
     assert one.n == 1 and math.isnan(one.std) and one.mean == 0.07
-    assert parse_cell("–") is None and parse_cell("failed") is None and parse_cell("12") .mean == 12.0
+    assert parse_cell("–") is None and parse_cell("failed") is None and parse_cell("12").mean == 12.0
 
 
-def _table(tmp_path, rows: dict, name="t") -> object:
-    """A grouped table CSV like the report writes: rows {method: [cells of group a, group b]} for metric m."""
-    lines = ["# Produced by `x` from runs at commit(s) abc1234 on x86_64.", "garment,a,b", "metric,m,m", "method,,"]
-    lines += [f"{k},{a},{b}" for k, (a, b) in rows.items()]
-    (tmp_path / f"{name}.csv").write_text("\n".join(lines) + "\n")
-    return read_table(tmp_path / f"{name}.csv")
+def _csv(tmp_path, rows: dict, name="t", commits=None, mixed="") -> Path:
+    """A grouped table CSV as report.py writes it (sealed): rows {method: [cells of group a, group b]} of metric m."""
+    commits = commits or [_git("rev-parse", "HEAD")]
+    lines = [f"# Produced by `x` from runs at commit(s) {', '.join(commits)} on x86_64 / Linux (now)."]
+    lines += [f"# **Mixed commits**: the rows come from {len(commits)} commits, so code changed between them: {mixed}."] if mixed else []
+    lines += ["garment,a,a,b,b", "metric,m,c,m,c", "method,,,,"]
+    lines += [f"{k},{a},{ca},{b},{cb}" for k, (a, b, *ctrl) in rows.items() for ca, cb in [ctrl or ["–", "–"]]]
+    path = tmp_path / f"{name}.csv"
+    path.write_text(seal("\n".join(lines) + "\n"))
+    return path
 
 
-ORDER = Claim("x", "P", "hi above lo", "-", "order", table="t", metrics=("m",), greater=[("hi", "lo")])
+def _table(tmp_path, rows: dict, **kw):
+    return read_table(_csv(tmp_path, rows, **kw))
+
+
+ORDER = Claim("x", "P", "hi above lo", "-", "order", table="t", metrics=("m",), greater=[("hi", "lo")], control_why="test")
 
 
 @pytest.mark.parametrize(
     "hi, lo, verdict",
     [
         (["5 ± 0.5 (n=3)", "6 ± 0.5 (n=3)"], ["1 ± 0.5 (n=3)", "2 ± 0.5 (n=3)"], "reproduced"),
-        (["5 ± 2 (n=3)", "6 ± 0.5 (n=3)"], ["4 ± 2 (n=3)", "2 ± 0.5 (n=3)"], "holds, inside the spread"),
+        (["5 ± 2 (n=3)", "6 ± 0.5 (n=3)"], ["4 ± 2 (n=3)", "2 ± 0.5 (n=3)"], "partly"),  # a tie does not count
+        (["5 ± 2 (n=3)", "6 ± 2 (n=3)"], ["4 ± 2 (n=3)", "5 ± 2 (n=3)"], "inside the spread"),  # every band overlaps
         (["5", "6"], ["1", "2"], "holds, one seed"),
-        (["5 ± 0.5 (n=3)", "1 ± 0.5 (n=3)"], ["1 ± 0.5 (n=3)", "2 ± 0.5 (n=3)"], "partly"),
         (["1 ± 0.5 (n=3)", "1"], ["5 ± 0.5 (n=3)", "2"], "not reproduced"),
         (["5", "failed"], ["1", "2"], "not run"),
     ],
 )
-def test_an_ordering_is_reproduced_only_beyond_the_seeds_spread(tmp_path, hi, lo, verdict):
+def test_an_ordering_counts_only_cases_whose_bands_do_not_overlap(tmp_path, hi, lo, verdict):
     t = _table(tmp_path, {"hi": hi, "lo": lo})
-    assert verdict_class(evaluate(ORDER, t)[1]) == verdict
+    assert verdict_class(evaluate(ORDER, t).verdict) == verdict
 
 
-def test_levels_and_cross_group_orders(tmp_path):
-    t = _table(tmp_path, {"r": ["0.1 ± 0.05 (n=3)", "0.3 ± 0.05 (n=3)"]})
-    level = Claim("l", "P", "r low", "-", "level", table="t", metrics=("m",), row="r", bound=0.2, groups=("a",))
-    assert evaluate(level, t)[1] == "reproduced"
-    assert evaluate(Claim("l", "P", "r low", "-", "level", table="t", metrics=("m",), row="r", bound=0.12, groups=("a",)), t)[1] \
-        == "holds, inside the spread"  # the mean is below the bound, mean + std is not
-    assert evaluate(Claim("l", "P", "r", "-", "level", table="t", metrics=("m",), row="r", bound=0.2, comparable=False), t)[1] \
-        .startswith("partly (1/2) (*indicative*")
-    grows = Claim("g", "P", "b above a", "-", "order_groups", table="t", metrics=("m",), row="r", greater=[("b", "a")])
-    ours, verdict = evaluate(grows, t)
-    assert verdict == "reproduced" and "a 0.1 ± 0.05 (n=3) < b 0.3 ± 0.05 (n=3)" in ours
-    assert evaluate(Claim("u", "P", "c", "-", "untested", why="needs a GPU"), None)[1] == "not testable here: needs a GPU"
+def test_a_tie_earns_no_partial_credit(tmp_path):
+    """The issue's gaps_t2_no_inext case: 0.023 ± 0.002 against 0.022 ± 0.002 is a tie, not a held case."""
+    t = _table(tmp_path, {"hi": ["0.023 ± 0.002 (n=3)", "5 ± 0.1 (n=3)"], "lo": ["0.022 ± 0.002 (n=3)", "1 ± 0.1 (n=3)"]})
+    j = evaluate(ORDER, t)
+    assert j.verdict == "partly (1/2)" and "[tie]" in j.ours
+
+
+def test_a_level_the_control_also_meets_is_scene_determined(tmp_path):
+    level = Claim("l", "P", "r low", "-", "level", table="t", metrics=("m",), row="r", bound=0.2, control=("lbs",))
+    t = _table(tmp_path, {"r": ["0.05 ± 0.01 (n=3)", "0.06 ± 0.01 (n=3)"], "lbs": ["0.1", "0.5"]}, name="t")
+    assert evaluate(level, t).verdict == "partly (1/2)"  # lbs meets the bound on a only: only b counts for r
+    t = _table(tmp_path, {"r": ["0.05 ± 0.01 (n=3)", "0.06 ± 0.01 (n=3)"], "lbs": ["0.1", "0.1"]}, name="t")
+    j = evaluate(level, t)
+    assert verdict_class(j.verdict) == "scene-determined" and j.control == "lbs holds 2/2"
+    t = _table(tmp_path, {"r": ["0.05 ± 0.01 (n=3)", "0.06 ± 0.01 (n=3)"], "lbs": ["0.5", "0.5"]}, name="t")
+    assert evaluate(level, t).verdict == "reproduced"
+    assert verdict_class(evaluate(Claim("l2", "P", "r", "-", "level", table="t", metrics=("m",), row="r", bound=0.2,
+                                        control=("gaps_untrained",)), t).verdict) == "holds, control not run"  # fmt: skip
+
+
+def test_an_order_the_control_also_meets_credits_the_scene(tmp_path):
+    """gaps_t3's case: the row without the term grows with the body as much: the body, not the term."""
+    grows = Claim("g", "P", "b above a", "-", "order_groups", table="t", metrics=("m",), row="r", greater=[("b", "a")],
+                  control=("r0",))  # fmt: skip
+    t = _table(tmp_path, {"r": ["1 ± 0.1 (n=3)", "3 ± 0.1 (n=3)"], "r0": ["1 ± 0.1 (n=3)", "3 ± 0.1 (n=3)"]})
+    assert verdict_class(evaluate(grows, t).verdict) == "scene-determined"
+    t = _table(tmp_path, {"r": ["1 ± 0.1 (n=3)", "3 ± 0.1 (n=3)"], "r0": ["1 ± 0.1 (n=3)", "1 ± 0.1 (n=3)"]})
+    assert evaluate(grows, t).verdict == "reproduced"
+
+
+def test_a_difference_under_the_floor_is_too_small_to_tell(tmp_path):
+    t = _table(tmp_path, {"hi": ["0.022", "0.140"], "lo": ["0.013", "0.135"]})  # deterministic rows, ε_c-like numbers
+    assert verdict_class(evaluate(ORDER, t).verdict) == "holds, one seed"  # no floor measured: any difference counts
+    j = evaluate(ORDER, t, floors={("t", "m"): 0.01})
+    assert j.verdict == "too small to tell" and j.ours.count("[too small]") == 2
+    assert evaluate(ORDER, t, floors={"m": 0.006}).verdict == "partly (1/2)"  # the metric's pooled floor
+
+
+def test_floors_are_the_median_seed_spread_per_table_and_metric(tmp_path):
+    t = _table(tmp_path, {"hi": ["5 ± 0.1 (n=3)", "6 ± 0.3 (n=3)"], "lo": ["1 ± 0.2 (n=3)", "2 ± 0 (n=3)"]})
+    floors = resolution_floors({"t": t})
+    assert floors[("t", "m")] == (pytest.approx(0.2), 3, 1) and floors["m"] == floors[("t", "m")]
+
+
+def test_cases_with_the_same_numbers_count_once(tmp_path):
+    """vto_f4_selfsup_samples' case: a quantity that does not depend on the group repeats in every group."""
+    t = _table(tmp_path, {"hi": ["5 ± 0.5 (n=3)", "5 ± 0.5 (n=3)"], "lo": ["1 ± 0.5 (n=3)", "1 ± 0.5 (n=3)"]})
+    j = evaluate(ORDER, t)
+    assert j.verdict == "reproduced" and "2 cases, 1 distinct" in j.ours
+    t = _table(tmp_path, {"hi": ["5 ± 0.5 (n=3)", "5 ± 0.5 (n=3)"], "lo": ["1 ± 0.5 (n=3)", "9 ± 0.5 (n=3)"]})
+    assert evaluate(ORDER, t).verdict == "partly (1/2)"
+
+
+def test_a_row_from_another_commit_or_changed_code_makes_the_claim_stale(tmp_path):
+    head, parent = _git("rev-parse", "HEAD"), _git("rev-parse", "HEAD~1")
+    rows = {"hi": ["5 ± 0.5 (n=3)", "6 ± 0.5 (n=3)"], "lo": ["1 ± 0.5 (n=3)", "2 ± 0.5 (n=3)"]}
+    t = _table(tmp_path, rows, commits=[parent, head], mixed=f"hi {parent[:7]}; lo {head[:7]}")
+    j = evaluate(ORDER, t)
+    assert j.verdict == "stale: reproduced" and list(j.stale) == ["hi"] and "not the table's" in j.stale["hi"]
+    t = _table(tmp_path, rows, commits=["0123456789abcdef0123456789abcdef01234567"])
+    assert "not in this repository's history" in evaluate(ORDER, t).stale["hi"]
+    # a method's code that differs from the code the verdicts are judged against
+    level = Claim("l", "P", "lbs low", "-", "level", table="t", metrics=("m",), row="lbs", bound=9, control_why="test")
+    t = _table(tmp_path, {"lbs": ["1", "2"]})
+    assert evaluate(level, t).verdict == "holds, one seed"
+    assert evaluate(level, t, code={"lbs": "000000000000"}).verdict == "stale: holds, one seed"
+
+
+def test_within_compares_each_group_with_the_reference_group(tmp_path):
+    within = Claim("w", "P", "b near a", "-", "within", table="t", metrics=("m",), row="r", reference="a", bound=1.5,
+                   control=("lbs",))  # fmt: skip
+    t = _table(tmp_path, {"r": ["10", "12"], "lbs": ["10", "20"]})
+    assert evaluate(within, t).verdict == "holds, one seed"  # 12 <= 15; lbs 20 > 15
+    t = _table(tmp_path, {"r": ["10", "30"], "lbs": ["10", "20"]})
+    assert evaluate(within, t).verdict == "not reproduced"
 
 
 def test_a_gpu_table_fills_its_own_column(tmp_path):
-    _table(tmp_path, {"hi": ["5", "6"], "lo": ["1", "2"]})
-    _table(tmp_path, {"hi": ["1", "2"], "lo": ["5", "6"]}, name="t_gpu")
+    _csv(tmp_path, {"hi": ["5", "6"], "lo": ["1", "2"]})
+    _csv(tmp_path, {"hi": ["1", "2"], "lo": ["5", "6"]}, name="t_gpu")
     row = next(line for line in render([ORDER], tmp_path).splitlines() if line.startswith("| **x**"))
     cells = [c.strip() for c in row.split("|")]
-    assert cells[4] == "holds, one seed" and cells[5].startswith("not reproduced")
+    assert cells[5] == "holds, one seed" and cells[6].startswith("not reproduced")
 
 
-def test_every_paper_table_and_figure_has_a_claim_and_ids_are_unique():
+def test_every_claim_can_fail_and_names_its_control():
     sources = {c.source for c in CLAIMS}
     for s in ("GAPS Table 1", "GAPS Table 2", "GAPS Table 3", "GAPS Table 4", "GenSim Table 1", "GenSim Table 2",
               "GenSim Fig. 2", "GenSim Fig. 10", "GenSim Fig. 11", "VTO Table 1", "VTO Fig. 4", "VTO Table 2"):  # fmt: skip
         assert s in sources, s
     assert len({c.id for c in CLAIMS}) == len(CLAIMS)
     for c in CLAIMS:
-        assert c.kind in ("order", "order_groups", "level", "runs", "untested") and (c.kind != "untested" or c.why)
+        assert c.kind in KINDS and (c.kind != "untested" or c.why), c.id
+        assert c.kind == "untested" or c.control or c.control_why, f"{c.id} names no control"
+
+
+def _flipped(tmp_path, claim: Claim, value: str) -> str:
+    """The verdict of ``claim`` after the first value of its credited row is made ``value``."""
+    src = REPORTS / f"{claim.table}.csv"
+    text = src.read_text().rsplit("# sha256 ", 1)[0]
+    t = read_table(src)
+    row = claim.row or claim.credited_row()
+    cell = next(v for (r, _, m), v in t.cells.items() if r == row and m in claim.metrics and parse_cell(v))
+    (tmp_path / src.name).write_text(seal(text.replace(f",{cell},", f",{value},", 1)))
+    return evaluate(claim, read_table(tmp_path / src.name)).verdict
+
+
+@pytest.mark.parametrize("kind", ["order", "order_groups", "level", "within"])
+def test_flipping_one_committed_value_changes_a_verdict_of_every_kind(tmp_path, kind):
+    claim = next(c for c in CLAIMS if c.kind == kind)
+    before = evaluate(claim, read_table(REPORTS / f"{claim.table}.csv")).verdict
+    after = [_flipped(tmp_path, claim, v) for v in ("1000000", "-1000000")]  # far above, far below
+    assert not any(a.startswith("not run") for a in after) and any(a != before for a in after), (claim.id, before, after)
 
 
 def test_committed_claims_md_is_what_the_committed_csvs_give():
     committed = (REPORTS / "claims.md").read_text()
-    assert committed == render(CLAIMS, REPORTS), "reports/claims.md drifted from reports/*.csv: run `python -m drapebench.report --claims`"
+    assert committed == render(CLAIMS, REPORTS, recorded_code(committed)), \
+        "reports/claims.md drifted from reports/*.csv: run `python -m drapebench.report --claims`"  # fmt: skip
+    assert recorded_code(committed) == current_code(), \
+        "the methods' code changed since reports/claims.md was judged: run `python -m drapebench.report --claims`"  # fmt: skip
 
 
 def test_a_claim_with_none_of_its_groups_is_not_run_and_an_unknown_kind_fails(tmp_path):
     t = _table(tmp_path, {"hi": ["5", "6"], "lo": ["1", "2"]})
     only_c = Claim("c", "P", "on c", "-", "order", table="t", metrics=("m",), greater={"c": [("hi", "lo")]})
-    assert evaluate(only_c, t)[1].startswith("not run")
+    assert evaluate(only_c, t).verdict.startswith("not run")
     with pytest.raises(ValueError, match="unknown kind 'ordr'"):
         evaluate(Claim("k", "P", "typo", "-", "ordr", table="t", metrics=("m",)), t)
+
+
+# strict reading (issue 59): a damaged table is an error naming the file and the line, never a different score
+
+
+def test_every_committed_table_matches_its_checksum_and_every_scored_one_reads_strictly():
+    for path in sorted(REPORTS.glob("*.csv")):
+        verified_text(path)
+    for name in {c.table for c in CLAIMS if c.table and (REPORTS / f"{c.table}.csv").exists()}:
+        assert read_csv(REPORTS / f"{name}.csv").rows
+
+
+def test_a_duplicated_row_is_an_error_naming_the_file_and_line(tmp_path):
+    path = _csv(tmp_path, {"hi": ["5", "6"], "lo": ["1", "2"]})
+    body = path.read_text().rsplit("# sha256 ", 1)[0] + "hi,–,–,–,–\n"
+    path.write_text(seal(body))
+    with pytest.raises(TableError, match=r"t\.csv: line 7: row 'hi' repeats line 5"):
+        read_table(path)
+
+
+def test_a_truncated_table_is_an_error_naming_the_file(tmp_path):
+    path = _csv(tmp_path, {"hi": ["5", "6"], "lo": ["1", "2"]})
+    path.write_bytes(path.read_bytes()[:-60])  # cut mid-line: the footer is gone
+    with pytest.raises(TableError, match=r"t\.csv: line \d+: no checksum footer.*truncated"):
+        read_table(path)
+    path = _csv(tmp_path, {"hi": ["5", "6"], "lo": ["1", "2"]})
+    path.write_text(path.read_text().replace("hi,5", "hi,7"))  # a value edited by hand
+    with pytest.raises(TableError, match=r"t\.csv: line 7: the checksum does not match"):
+        read_table(path)
+
+
+def test_a_binary_file_is_an_error_naming_the_file(tmp_path):
+    (tmp_path / "t.csv").write_bytes(b"garment,a\n\xff\xfe\x00\x01")
+    with pytest.raises(TableError, match=r"t\.csv: line 2: a NUL byte"):
+        read_table(tmp_path / "t.csv")
+    (tmp_path / "t.csv").write_bytes(b"garment,a\n\xff\xfe")
+    with pytest.raises(TableError, match=r"t\.csv: line 2: not UTF-8"):
+        read_table(tmp_path / "t.csv")
+
+
+@pytest.mark.parametrize("row, match", [("hi,5,6,7", "line 7: 4 cells where the header has 5"),
+                                        ("x,5,abc,–,–", r"line 7: column 3 \('c'\) holds 'abc'")])  # fmt: skip
+def test_wrong_widths_and_cells_that_are_no_number_are_errors(tmp_path, row, match):
+    path = _csv(tmp_path, {"hi": ["5", "6"], "lo": ["1", "2"]})
+    path.write_text(seal(path.read_text().rsplit("# sha256 ", 1)[0] + row + "\n"))
+    with pytest.raises(TableError, match=match):
+        read_table(path)

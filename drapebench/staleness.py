@@ -1,0 +1,156 @@
+"""Which rows of a committed table are stale: run at another commit than the table's newest, or by method code
+that has changed since.
+
+A method's code is its implementation folder ``methods/<impl>/`` (its ``.py`` files) and its configs
+(``conf/method/<name>.yaml`` of every config whose implementation it is, and ``conf/method/<impl>_*/``), compared
+by :func:`fingerprint`: Python without comments and docstrings (its syntax tree), YAML as the data it loads, so a
+reflowed docstring changes nothing and a changed default does. Reads git history; a commit the repository does not
+know (or a run on uncommitted changes, ``-dirty``) cannot be checked and counts as stale.
+"""
+
+from __future__ import annotations
+
+import ast
+import hashlib
+import json
+import subprocess
+from functools import lru_cache
+from pathlib import Path
+
+import yaml
+
+from drapebench.cache import PROJECT_ROOT
+
+METHOD_CONF = "conf/method"
+
+
+def _git(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(["git", "-C", str(PROJECT_ROOT), *args], capture_output=True, text=True)
+
+
+@lru_cache(maxsize=None)
+def known(commit: str) -> str | None:
+    """The full hash of ``commit`` (a hash or its prefix) when this repository has it, else None."""
+    if not commit or commit.endswith("-dirty") or commit == "unknown":
+        return None
+    out = _git("rev-parse", "--verify", "--quiet", f"{commit}^{{commit}}")
+    return out.stdout.strip() or None
+
+
+def is_ancestor(a: str, b: str) -> bool:
+    """Whether commit ``a`` is ``b`` or an ancestor of it (both known)."""
+    return _git("merge-base", "--is-ancestor", a, b).returncode == 0
+
+
+def newest(commits) -> str | None:
+    """The commit of ``commits`` that descends from all the others (the table's commit), None when one is unknown
+    or they are not on one line of history."""
+    full = [known(c) for c in commits]
+    if not full or None in full:
+        return None
+    return next((c for c in full if all(is_ancestor(o, c) for o in full)), None)
+
+
+def _conf_impl(stem: str, seen=()) -> str | None:
+    path = PROJECT_ROOT / METHOD_CONF / f"{stem}.yaml"
+    if not path.exists() or stem in seen:
+        return None
+    data = yaml.safe_load(path.read_text()) or {}
+    if data.get("impl"):
+        return _folder(str(data["impl"]))
+    parents = [d for d in data.get("defaults", []) if isinstance(d, str) and d != "_self_"]
+    return next((i for i in (_conf_impl(p, (*seen, stem)) for p in parents) if i), None)
+
+
+def _folder(impl: str) -> str:
+    """The folder under ``methods/`` holding implementation ``impl`` (``gaps_optimum`` lives in ``methods/gaps``)."""
+    return max((f for f in impls() if impl == f or impl.startswith(f + "_")), key=len, default=impl)
+
+
+@lru_cache(maxsize=None)
+def implementation(row: str) -> str | None:
+    """The implementation folder (``methods/<folder>``) behind a table row: the row's method config, or the config
+    whose name is the longest prefix of it (``gaps_untrained`` is ``gaps`` run with ``method.name`` changed); None
+    when no method config matches."""
+    stems = sorted((p.stem for p in (PROJECT_ROOT / METHOD_CONF).glob("*.yaml")), key=len, reverse=True)
+    stem = next((s for s in stems if row == s or row.startswith(s + "_")), None)
+    return _conf_impl(stem) if stem else None
+
+
+@lru_cache(maxsize=None)
+def code_files(impl: str) -> tuple:
+    """The config files (repository paths) of today's tree that belong to ``impl``: every method config whose
+    implementation it is and its budget folders (``conf/method/<impl>_*/``); its ``.py`` files are listed per commit
+    by :func:`fingerprint`."""
+    conf = PROJECT_ROOT / METHOD_CONF
+    files = [f"{METHOD_CONF}/{p.name}" for p in sorted(conf.glob("*.yaml")) if _conf_impl(p.stem) == impl]
+    files += [str(p.relative_to(PROJECT_ROOT)) for p in sorted(conf.glob(f"{impl}_*/*.yaml"))]
+    return tuple(files)
+
+
+def _normalised(path: str, text: str) -> str:
+    """``text`` without what does not change behaviour: a Python file's comments and docstrings, a YAML file's
+    comments and layout."""
+    if path.endswith(".py"):
+        try:
+            tree = ast.parse(text)
+        except SyntaxError:
+            return text
+        for node in ast.walk(tree):
+            body = getattr(node, "body", None)
+            if isinstance(body, list) and body and isinstance(body[0], ast.Expr) and isinstance(getattr(body[0], "value", None), ast.Constant) \
+                    and isinstance(body[0].value.value, str):  # fmt: skip
+                node.body = body[1:] or [ast.Pass()]
+        return ast.dump(tree)
+    return json.dumps(yaml.safe_load(text), sort_keys=True, default=str)
+
+
+@lru_cache(maxsize=None)
+def fingerprint(impl: str, commit: str | None = None) -> str:
+    """A short hash of ``impl``'s code (see the module docstring) at ``commit`` (full hash), or in the working tree
+    for None."""
+    if commit is None:
+        paths = [str(p.relative_to(PROJECT_ROOT)) for p in sorted((PROJECT_ROOT / "methods" / impl).rglob("*.py"))]
+        read = lambda p: (PROJECT_ROOT / p).read_text() if (PROJECT_ROOT / p).exists() else None  # noqa: E731
+    else:
+        listed = _git("ls-tree", "-r", "--name-only", commit, "--", f"methods/{impl}/").stdout.split()
+        paths = sorted(p for p in listed if p.endswith(".py"))
+        read = lambda p: (lambda r: r.stdout if r.returncode == 0 else None)(_git("show", f"{commit}:{p}"))  # noqa: E731
+    h = hashlib.sha256()
+    for p in [*paths, *code_files(impl)]:
+        text = read(p)
+        h.update(f"{p}\0{'absent' if text is None else _normalised(p, text)}\0".encode())
+    return h.hexdigest()[:12]
+
+
+def stale_rows(rows, row_commits: dict, table_commits, code: dict | None = None) -> dict:
+    """{row: why} for the rows of ``rows`` that are stale: from another commit than the newest of
+    ``table_commits``, from a commit git does not know, or run by code whose :func:`fingerprint` differs from
+    ``code`` ({impl: fingerprint}, the code the verdicts are judged against; default: the working tree's).
+    ``row_commits``: {row: [commits]}; a row missing from it ran at the table's commits."""
+    table_commit = newest(table_commits)
+    out = {}
+    for row in rows:
+        commits = row_commits.get(row, list(table_commits))
+        full = [known(c) for c in commits]
+        impl = implementation(row)
+        if None in full:
+            out[row] = f"its commit {commits[full.index(None)]} is not in this repository's history (or ran on uncommitted changes)"
+        elif table_commit is None:
+            out[row] = "the table's commits are not on one line of history"
+        elif any(c != table_commit for c in full):
+            out[row] = f"from {', '.join(c[:7] for c in full if c != table_commit)}, not the table's {table_commit[:7]}"
+        elif impl is not None and fingerprint(impl, full[0]) != (code or {}).get(impl, fingerprint(impl)):
+            out[row] = f"methods/{impl} or its configs changed since {full[0][:7]}"
+    return out
+
+
+def impls() -> list:
+    """Every implementation folder under ``methods/`` (those with an ``__init__.py``)."""
+    return sorted(p.parent.name for p in (PROJECT_ROOT / "methods").glob("*/__init__.py"))
+
+
+def current_code() -> dict:
+    """{impl: fingerprint} of the working tree's code of every implementation."""
+    return {impl: fingerprint(impl) for impl in impls()}
+
