@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from drapebench.cache import atomic_write
+from drapebench.cache import PROJECT_ROOT, atomic_write
 from drapebench.claim import Claim
 from drapebench.staleness import current_code, stale_rows
 from drapebench.table_file import read_csv
@@ -367,8 +367,8 @@ def _judge(claims: list, reports: Path, code: dict | None):
 
 
 def counts_line(counts: pd.Series, total: int) -> str:
-    """"Verdicts: 3 reproduced, ... (of N claims)."."""
-    return "Verdicts: " + ", ".join(f"{v} {k}" for k, v in counts.items()) + f" (of {total} claims)."
+    """"Verdicts: 3 reproduced; ...; 1 holds, one seed (of N claims)."."""
+    return "Verdicts: " + "; ".join(f"{v} {k}" for k, v in counts.items()) + f" (of {total} claims)."
 
 
 CODE_LINE = "Rows judged against the methods' code with fingerprints: "
@@ -434,13 +434,41 @@ def recorded_code(text: str) -> dict:
     return dict(part.split() for part in line[len(CODE_LINE):].split(" (drapebench")[0].split(", "))
 
 
-def write_claims(reports: Path, out: Path | None = None) -> Path:
-    """Write the scoreboard of :data:`drapebench.claims_catalogue.CLAIMS` over ``reports`` to ``out``
-    (default ``reports/claims.md``), atomically; returns the path."""
+STATUS_START = "<!-- status: generated with reports/claims.md by `python -m drapebench.report --claims`; do not edit -->"
+STATUS_END = "<!-- end of status -->"
+
+
+def status_block(claims_md: str) -> str:
+    """The README's "reproduction status at a glance" for a claims.md text: its verdict counts, between
+    :data:`STATUS_START` and :data:`STATUS_END`."""
+    counts = next(line for line in claims_md.splitlines() if line.startswith("Verdicts: "))
+    return (f"{STATUS_START}\n{counts} Each claim, its control and the rules behind the verdicts: "
+            f"[reports/claims.md](reports/claims.md).\n{STATUS_END}")
+
+
+def with_status(readme: str, claims_md: str, path: Path) -> str:
+    """``readme`` with its status block replaced by :func:`status_block` of ``claims_md``; raises ValueError naming
+    ``path`` when it has no block."""
+    start, end = readme.find(STATUS_START), readme.find(STATUS_END)
+    if start < 0 or end < start:
+        raise ValueError(f"{path} has no status block: put the lines {STATUS_START!r} and {STATUS_END!r} where the "
+                         "reproduction status belongs")  # fmt: skip
+    return readme[:start] + status_block(claims_md) + readme[end + len(STATUS_END):]
+
+
+def write_claims(reports: Path, out: Path | None = None, readme: Path | None = None) -> Path:
+    """Write the scoreboard of :data:`drapebench.claims_catalogue.CLAIMS` over ``reports`` to ``out`` (default
+    ``reports/claims.md``) and its verdict counts into ``readme``'s status block (default: the project's README.md
+    when ``out`` is the committed claims.md), atomically; returns ``out``."""
     from drapebench.claims_catalogue import CLAIMS
 
     out = out or reports / "claims.md"
+    text = render(CLAIMS, reports)
     with atomic_write(out, "w") as f:
-        f.write(render(CLAIMS, reports))
+        f.write(text)
+    readme = readme or (PROJECT_ROOT / "README.md" if Path(out).resolve() == (PROJECT_ROOT / "reports" / "claims.md").resolve() else None)
+    if readme is not None:
+        updated = with_status(Path(readme).read_text(), text, readme)
+        with atomic_write(readme, "w") as f:
+            f.write(updated)
     return out
-

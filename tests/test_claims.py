@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from drapebench.claims import (KINDS, Claim, evaluate, parse_cell, read_table, recorded_code, render, resolution_floors,
-                               verdict_class)  # fmt: skip
+                               status_block, verdict_class, with_status)  # fmt: skip
 from drapebench.claims_catalogue import CLAIMS
 from drapebench.staleness import current_code
 from drapebench.table_file import TableError, read_csv, seal, verified_text
@@ -186,6 +186,15 @@ def test_committed_claims_md_is_what_the_committed_csvs_give():
         "reports/claims.md drifted from reports/*.csv: run `python -m drapebench.report --claims`"  # fmt: skip
     assert recorded_code(committed) == current_code(), \
         "the methods' code changed since reports/claims.md was judged: run `python -m drapebench.report --claims`"  # fmt: skip
+
+
+def test_the_readme_status_is_the_committed_scoreboard_s_counts(tmp_path):
+    claims_md = (REPORTS / "claims.md").read_text()
+    assert status_block(claims_md) in (ROOT / "README.md").read_text(), \
+        "README.md's status disagrees with reports/claims.md: run `python -m drapebench.report --claims`"  # fmt: skip
+    assert "Verdicts: " in status_block(claims_md)
+    with pytest.raises(ValueError, match="README.md has no status block"):
+        with_status("# x\n", claims_md, Path("README.md"))
 
 
 def test_a_claim_with_none_of_its_groups_is_not_run_and_an_unknown_kind_fails(tmp_path):
