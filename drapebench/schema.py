@@ -3,12 +3,13 @@ keys added with ``+`` that nothing reads fail in :func:`check_keys` before a run
 
 from __future__ import annotations
 
-import difflib
 from dataclasses import dataclass, field, fields, is_dataclass
 from enum import Enum
 from typing import Any, Dict, List, Optional
 
 from hydra.core.config_store import ConfigStore
+
+from drapebench.keys import check_known
 
 
 @dataclass
@@ -195,16 +196,11 @@ def check_keys(cfg, schema: type = None, prefix: str = "") -> None:
     which would otherwise be ignored. ``params`` mappings are checked by the code that reads them."""
     schema = schema or Config
     known = {f.name: f for f in fields(schema)}
+    check_known([f"{prefix}{key}" for key in cfg], [f"{prefix}{key}" for key in known], "config key", "(nothing reads it)")
     for key in cfg:
-        name = f"{prefix}{key}"
-        if key not in known:
-            close = difflib.get_close_matches(str(key), list(known), n=1)
-            hint = f" (did you mean {prefix}{close[0]}?)" if close else ""
-            raise ValueError(f"unknown config key {name!r}{hint}: nothing reads it; valid keys{' of ' + prefix[:-1] if prefix else ''}: "
-                             f"{', '.join(sorted(known))}")  # fmt: skip
         sub = known[key].default_factory if is_dataclass(getattr(known[key], "default_factory", None)) else None
         if sub is not None and cfg[key] is not None:
-            check_keys(cfg[key], sub, f"{name}.")
+            check_keys(cfg[key], sub, f"{prefix}{key}.")
 
 
 def register() -> None:

@@ -13,6 +13,7 @@ import torch
 
 from drapebench.cache import Cache, body_key
 from drapebench.geometry.ops import face_areas, face_normals
+from drapebench.keys import check_known
 from drapebench.progress import progress
 
 log = logging.getLogger(__name__)
@@ -21,9 +22,7 @@ log = logging.getLogger(__name__)
 def resolve_config(cfg: dict | None, defaults: dict, what: str) -> dict:
     """``defaults`` updated by ``cfg``; an unknown key is a ValueError naming the valid ones."""
     cfg = dict(cfg or {})
-    unknown = sorted(set(cfg) - set(defaults))
-    if unknown:
-        raise ValueError(f"unknown {what} setting(s) {unknown}; valid settings: {sorted(defaults)}")
+    check_known(cfg, defaults, f"{what} setting")
     return {**defaults, **cfg}
 
 

@@ -33,6 +33,7 @@ from drapebench.body.bake import JOINT_NAMES
 from drapebench.body.lbs import lbs
 from drapebench.body.limits import JOINT_LIMITS
 from drapebench.body.random_motion import random_motion
+from drapebench.keys import check_known
 
 NAMED_MOTIONS = ("walk", "run", "jump", "arm_raise", "squat", "twist", "kick", "dance", "static", "stress")
 MOTIONS = (*NAMED_MOTIONS, "random")  # random: drapebench.body.random_motion
@@ -299,9 +300,7 @@ def generate(motion: str, n_frames: int, fps: float, seed: int, transition: int 
     if seed < 0:
         raise ValueError(f"motion.seed must be >= 0 (it seeds numpy's generator), got {seed}; e.g. motion.seed=1000")
     builder, defaults = _SPECS[motion]
-    unknown = set(params) - set(defaults)
-    if unknown:
-        raise ValueError(f"unknown parameter(s) {sorted(unknown)} for motion {motion!r}; valid: {sorted(defaults)}")
+    check_known(params, defaults, "parameter", f"for motion {motion!r}")
     p = {**defaults, **params}
     rng = np.random.default_rng(seed)
     if "amplitude" in p:

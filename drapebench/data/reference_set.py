@@ -30,6 +30,7 @@ from drapebench.body.dataset import HELD_OUT_MOTIONS, DatasetSpec, spec_sequence
 from drapebench.body.sequence import DEFAULT_TRANSITION
 from drapebench.cache import PROJECT_ROOT, Cache
 from drapebench.data.references import References, read_drape
+from drapebench.keys import check_known
 from drapebench.progress import progress as progress_bar
 
 CONF_DIR = PROJECT_ROOT / "conf" / "data"
@@ -79,10 +80,7 @@ class ReferenceSetSpec:
     def from_config(cls, cfg) -> "ReferenceSetSpec":
         """From a mapping (a Hydra ``data`` node or a ``conf/data`` file); unknown keys name the valid ones."""
         cfg = dict(cfg)
-        valid = {f.name for f in fields(cls)}
-        unknown = set(cfg) - valid
-        if unknown:
-            raise ValueError(f"unknown reference set key(s) {sorted(unknown)}; valid: {sorted(valid)}")
+        check_known(cfg, [f.name for f in fields(cls)], "reference set key")
         return cls(**cfg)
 
     @classmethod

@@ -28,6 +28,7 @@ from drapebench.garments.garment import Garment, load_garment
 from drapebench.garments.mesh_ops import cut_by_field, isotropic_remesh, keep_component_near
 from drapebench.garments.validate import validate_garment
 from drapebench.geometry.topology import get_topology
+from drapebench.keys import check_known
 
 TOPS = ("tshirt", "tank", "longsleeve")
 LOOSE = ("skirt", "dress", "gown")
@@ -179,9 +180,7 @@ def garment_params(kind: str, seed: int = 0, **params) -> dict:
     if kind not in DEFAULTS:
         raise ValueError(f"unknown garment kind {kind!r}; valid kinds: {', '.join(GARMENT_KINDS)}")
     p = {**COMMON, **DEFAULTS[kind]}
-    unknown = set(params) - set(p)
-    if unknown:
-        raise ValueError(f"unknown parameter(s) {sorted(unknown)} for {kind}; valid: {sorted(p)}")
+    check_known(params, p, "parameter", f"for {kind}")
     p.update(params)
     if seed < 0:
         raise ValueError(f"garment.seed must be >= 0 (it seeds numpy's generator), got {seed}; e.g. garment.seed=0")

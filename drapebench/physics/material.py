@@ -18,6 +18,8 @@ from pathlib import Path
 
 import yaml
 
+from drapebench.keys import check_known
+
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf" / "material"
 # What a cloth can be (field: lowest, highest, unit): generous bounds around the presets (cotton, silk,
 # denim, leather) and HOOD's sampled training ranges (docs/references.md). young up to 1e7 Pa is 140x
@@ -117,10 +119,7 @@ class Material:
     def from_config(cls, cfg) -> "Material":
         """From a mapping (e.g. a Hydra ``material`` node); unknown keys are an error naming the valid ones."""
         d = dict(cfg)
-        valid = set(cls.__dataclass_fields__)
-        unknown = set(d) - valid
-        if unknown:
-            raise ValueError(f"unknown material key(s) {sorted(unknown)}; valid keys: {sorted(valid)}")
+        check_known(d, cls.__dataclass_fields__, "material key")
         return cls(**d)
 
     @classmethod

@@ -7,6 +7,8 @@ from pathlib import Path
 
 import yaml
 
+from drapebench.keys import check_known
+
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf" / "reference"
 SOLVERS = ("vbd", "style3d")
 
@@ -63,11 +65,8 @@ class SimSettings:
         if solver not in SOLVERS:
             cls(solver=solver)  # raises the ValueError naming the choices
         base = yaml.safe_load((CONF_DIR / f"{solver}.yaml").read_text())
-        valid = {f.name for f in fields(cls)}
         given = {k: v for k, v in overrides.items() if v is not None}
-        unknown = set(given) - valid
-        if unknown:
-            raise ValueError(f"unknown reference setting(s) {sorted(unknown)}; valid: {sorted(valid)}")
+        check_known(given, [f.name for f in fields(cls)], "reference setting")
         return cls(**{**base, **given, "solver": solver})
 
     def with_(self, **changes) -> "SimSettings":

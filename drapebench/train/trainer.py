@@ -27,6 +27,7 @@ import torch
 
 from drapebench.cache import cache_dir
 from drapebench.errors import TrainingDiverged
+from drapebench.keys import check_known
 from drapebench.progress import progress, progress_enabled
 from drapebench.results import git_commit
 from drapebench.schema import TrainConf
@@ -93,10 +94,7 @@ def train_config(cfg: Mapping[str, Any] | TrainConf | None) -> TrainConf:
     if isinstance(cfg, TrainConf):
         return cfg
     cfg = dict(cfg or {})
-    valid = [f.name for f in dataclasses.fields(TrainConf)]
-    unknown = sorted(set(cfg) - set(valid))
-    if unknown:
-        raise ValueError(f"unknown train parameter(s) {unknown}; valid: {valid}")
+    check_known(cfg, [f.name for f in dataclasses.fields(TrainConf)], "train parameter")
     if int(cfg.get("seed", 0)) < 0:
         raise ValueError(f"train.seed must be >= 0 (it seeds numpy's generator), got {cfg['seed']}; e.g. train.seed=0")
     return TrainConf(**cfg)
