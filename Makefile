@@ -7,7 +7,7 @@ TORCH_SPEC ?= torch==2.13.0
 export WARP_CACHE_PATH := $(CURDIR)/data/cache/warp
 export RERUN_ANALYTICS ?= 0
 
-.PHONY: venv run test test-slow bench clean-cache
+.PHONY: venv run test test-slow bench reports clean-cache
 
 # `make run` installs what run.py uses (the package + the Newton/warp reference simulator, about 2.9 GB);
 # `make test` adds the test tools and Anny (.[dev], about 0.13 GB more). pip shows its progress; set
@@ -46,6 +46,12 @@ test: $(BIN)/.installed-dev $(KERNELS)
 
 test-slow: $(BIN)/.installed-dev $(KERNELS)
 	$(BIN)/python -m pytest -m slow $(ARGS)
+
+# Every committed table from its experiments (drapebench/table_specs.py), then reports/claims.md: hours on 2 cores;
+# finished runs are kept and skipped, so a stopped `make reports` goes on where it stopped.
+# ARGS="--tables gaps_table1" for some tables, ARGS=--quick for the pipeline on a tiny scene.
+reports: $(BIN)/.installed-dev $(KERNELS)
+	$(BIN)/python -m drapebench.reproduce $(ARGS)
 
 bench: venv
 	for b in benchmarks/bench_*.py; do $(BIN)/python $$b || exit 1; done

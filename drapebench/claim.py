@@ -35,7 +35,6 @@ class Claim:
     control_why: str = ""
     credited: str = ""
     comparable: bool = True  # False: an absolute level on a scene unlike the paper's (indicative only)
-    command: str = ""
     why: str = ""
     notes: tuple = field(default_factory=tuple)
 

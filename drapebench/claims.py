@@ -21,6 +21,7 @@ from drapebench.cache import PROJECT_ROOT, atomic_write
 from drapebench.claim import Claim
 from drapebench.staleness import current_code, stale_rows
 from drapebench.table_file import read_csv
+from drapebench.table_specs import SPECS
 
 CELL = re.compile(r"^\s*(-?[\d.]+(?:e[-+]?\d+)?)(?:\s*±\s*([\d.]+(?:e[-+]?\d+)?))?(?:\s*\(n=(\d+)\))?\s*$")
 NO_SEEDS = 10**6  # the seed count of a paper's bound: exact, no spread
@@ -402,7 +403,7 @@ def render(claims: list[Claim], reports: Path, code: dict | None = None) -> str:
         link = f"[{c.table}]({c.table}.md)" if src else (f"{c.table} (not committed)" if c.table else "–")
         if src and len(src.commits) > 1:
             link += f", rows from {len(src.commits)} commits"
-        cmd = f"<br>`{c.command}`" if c.command else ""
+        cmd = f"<br>`{SPECS[c.table].command()}`" if c.table in SPECS else ""
         lines.append(f"| **{c.id}** ({c.source}): {c.claim} | {c.paper} | {j.ours} | {j.control} | {j.verdict} | {gpu_cell} | {link}{cmd} |")
         notes += [f"- {c.id}: {n}" for n in c.notes]
         notes += [f"- {c.id}: stale row {row}: {why}." for row, why in j.stale.items()]

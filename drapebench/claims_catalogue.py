@@ -9,18 +9,18 @@ from drapebench.claim import Claim
 
 GARMENTS_T1 = ("tshirt", "dress", "skirt", "gown")  # the paper's Table 1 garments, all in the committed table
 GARMENTS_T2 = ("tshirt", "dress", "skirt")  # the committed Table 2's garments (the gown not run)
-T1 = dict(table="gaps_table1", command="python run.py -m experiment=gaps_table1 garment=tshirt,skirt,dress,gown seed=0,1,2 threads=1")
-T2 = dict(table="gaps_table2", command="python run.py -m experiment=gaps_table2 garment=tshirt,skirt,dress seed=0,1,2 threads=1")
-T3 = dict(table="gaps_table3", command="python run.py -m experiment=gaps_table3 seed=0,1,2 threads=1")
-T4 = dict(table="gaps_table4", command="python run.py -m experiment=gaps_table1 (then --table runtime)")
-G2 = dict(table="gensim_table2", command="python run.py -m experiment=gensim_table2")
-F10 = dict(table="gensim_fig10", command="python run.py -m experiment=gensim_fig10 seed=0,1,2 threads=1")
-GP = dict(table="gensim_pen", command="python run.py -m experiment=gensim_pen seed=0,1,2 threads=1")
+T1 = dict(table="gaps_table1")
+T2 = dict(table="gaps_table2")
+T3 = dict(table="gaps_table3")
+T4 = dict(table="gaps_table4")
+G2 = dict(table="gensim_table2")
+F10 = dict(table="gensim_fig10")
+GP = dict(table="gensim_pen")
 GARMENTS_PEN = ("tshirt", "skirt", "dress")
-V1 = dict(table="vae_table1", command="python run.py -m experiment=vae_table1")
-V1D = dict(table="vae_table1_dress", command="python run.py -m experiment=vae_table1 garment=dress")
-V2 = dict(table="vae_table2", command="python benchmarks/bench_vae.py --out reports/vae_table2")
-RVE = dict(table="runtime_vs_error", command="python run.py -m experiment=runtime_vs_error garment=<g>")
+V1 = dict(table="vae_table1")
+V1D = dict(table="vae_table1_dress")
+V2 = dict(table="vae_table2")
+RVE = dict(table="runtime_vs_error")
 RUNTIME = ("a drape time measures the method's own operations; its untrained network or a skinning is not an "
            "alternative explanation of it")
 SAMPLES = ("decoded latent samples exist only for the VAE's variants, and the variants without a collision term are "
@@ -86,8 +86,7 @@ CLAIMS = [
           reference="unseen_motion", bound=1.5, control=("lbs",),
           notes=("The paper's ✓ is a capability; a capability that any number passes cannot fail, so the criterion is the "
                  "error's growth from the base column (1.5x: half as much error again), with lbs as the control: a "
-                 "column where lbs's error grows as little is no evidence of GenSim generalising.",),
-          command="python run.py -m experiment=gensim_table1"),
+                 "column where lbs's error grows as little is no evidence of GenSim generalising.",)),
     Claim("gensim_t2_edge", "GenSim Table 2", "edge change: unsupervised below supervised", "1.9 vs 3.8 mm", "order", metrics=("edge (mm)",),
           greater=[("gensim_l2", "gensim")], **G2, control=("gensim_arap", "lbs")),
     Claim("gensim_t2_smoothness", "GenSim Table 2", "smoothness: unsupervised below supervised", "0.0008 vs 0.0013", "order",
@@ -104,8 +103,7 @@ CLAIMS = [
           "\"the predicted garment displacement locally avoids the body-garment collision\" (no number)", "order", metrics=("ε_c (%)",),
           greater=[("gensim_arap", "gensim")], groups=GARMENTS_PEN, **GP, control=("lbs",)),
     Claim("gensim_f11_pen_displacement", "GenSim Fig. 11", "PEN displaces the cloth by up to tens of mm, most where gravity pulls it off the body",
-          "\"The maximum displacement magnitude produced by the PEN is 75mm\"", "untested", table="gensim_pen",
-          command=GP["command"], why="a lower bound on PEN's largest displacement, which no claim rule tests; gensim_pen "
+          "\"The maximum displacement magnitude produced by the PEN is 75mm\"", "untested", table="gensim_pen", why="a lower bound on PEN's largest displacement, which no claim rule tests; gensim_pen "
           "gives its mean and p99 per garment (and metrics.json its max)"),
     Claim("gensim_f10_restrain_limits_stretch", "GenSim Fig. 10", "ε_e: without the restrain term (V2) above with it (V3)",
           "V2 \"results in arbitrary elongation of the edges\"; V3 \"restrict[s] edges to elongate\"", "order",

@@ -23,35 +23,11 @@ import pandas as pd
 from drapebench.cache import PROJECT_ROOT, atomic_write
 from drapebench.results import METRICS, SUMMARY_COLUMNS, legend, metric_decimals, metric_label
 from drapebench.table_file import write_csv
+from drapebench.table_specs import SPECS, spec
 from drapebench.train.convergence import converged_seconds
 
-# table name -> (metrics shown, what the column groups are)
-TABLES = {
-    "baseline": (["eps_e", "eps_a", "eps_c"], "garment"),
-    "gaps_table1": (["eps_e", "eps_a", "eps_c", "eps_c@postprocessed"], "garment"),  # the paper scores before the push-out
-    "gaps_table2": (["eps_c"], "garment"),
-    "gaps_heldout": (["vertex_error_mm", "vertex_error_mm@untrained", "eps_c", "eps_c@postprocessed"], "shape"),
-    "gaps_table3": (["eps_e", "eps_a", "eps_c"], "shape"),
-    "runtime": (["train_s", "converged_s", "ms_per_frame"], "garment"),
-    "vae_table1": (["eps_c", "eps_c_canonical", "sampled_prior_pct", "sampled_codes_pct", "vertex_error_mm", "ms_per_frame"], "case"),
-    "runtime_vs_error": (["ms_per_frame", "vertex_error_mm", "eps_e", "eps_a", "eps_c", "train_s"], "garment"),
-    "gensim_table2": (["edge_mm", "smoothness", "eps_c", "vertex_error_mm"], "garment"),
-    "gensim_ablation": (["eps_e", "edge_mm", "smoothness", "eps_c", "vertex_error_mm"], "garment"),
-    "gensim_table1": (["eps_c", "vertex_error_mm"], "experiment"),
-    "gensim_pen": (["energy_j", "eps_c", "eps_e", "smoothness", "pen_mm", "pen_p99_mm"], "garment"),  # Fig. 2 / 11: gensim against gensim_arap
-    "gensim_fig10": (["hem_drop_mm", "eps_e", "eps_c", "pen_mm"], "garment"),  # Fig. 10: V1 falls, V2 elongates, V3 holds
-    "gaps_generalisation": (["eps_e", "eps_a", "eps_c", "vertex_error_mm", "energy_j"], "scene"),
-    "stability": (["max_strain", "max_penetration_mm", "eps_c", "drift_mm"], None),  # one row per run
-}
-# tables that also draw their metrics as bars, one panel per metric (<out>_bars.png)
-BAR_FIGURES = {"gensim_fig10": ["hem_drop_mm", "eps_e"]}
 CASE_COLUMNS = ["method", "garment", "motion", "shape", "dtype", "n_frames"]  # a row of a per-run table
 ENERGY_PARTS = ("energy_stvk", "energy_bending", "energy_gravity")  # summed into energy_j (J per frame)
-# what a table's empty cells mean, printed under it
-TABLE_NOTES = {
-    "gensim_table1": "– : not run, the method trains one model per garment mesh and body (gaps, vae), so this column "
-    "would need a new model rather than test the trained one.",
-}
 REFERENCE_METHOD = "pbs"  # the physics reference run as a method: the speed-ups of runtime_vs_error are over it
 # the reference's distance from itself, run as methods against the vbd reference (conf/method/<name>.yaml)
 FLOOR_METHODS = {"pbs_style3d": "the other solver (Style3D)", "pbs_half_dt": "vbd at half the time step of the reference"}
@@ -598,12 +574,14 @@ def only_garments(df: pd.DataFrame, garments: list[str] | None) -> pd.DataFrame:
 
 def write_table(dirs, name: str, out: Path, command: str | None = None, methods: list[str] | None = None,
                 garments: list[str] | None = None) -> list[Path]:
-    """Write ``out``.md/.tex/.csv and ``out``_runtime.png for table ``name`` (rows: ``methods`` in that order,
-    or every method of the runs; only the runs of ``garments`` when given), and ``out``_bars.png for a table
-    of ``BAR_FIGURES``; returns the paths."""
-    if name not in TABLES:
-        raise KeyError(f"unknown table {name!r}; tables: {', '.join(TABLES)}")
-    metrics, group = TABLES[name]
+    """Write ``out``.md/.tex/.csv and ``out``_runtime.png for table ``name`` by its spec
+    (:mod:`drapebench.table_specs`; rows: ``methods`` in that order, or every method of the runs; only the runs of
+    ``garments`` when given), and ``out``_bars.png for a spec with ``bars``; returns the paths. A table whose runs
+    come from several commits says so in its title."""
+    ts = spec(name)
+    if not ts.metrics:
+        raise KeyError(f"table {name!r} is not made from runs by this command: {ts.command()}")
+    metrics, group = list(ts.metrics), ts.group
     df = only_garments(only_methods(collect(dirs), methods), garments)
     failed = collect_failures(dirs)
     if methods and not failed.empty:
@@ -616,11 +594,11 @@ def write_table(dirs, name: str, out: Path, command: str | None = None, methods:
     about = f"{scene(pd.concat([df, failed]))}\n\n{legend(metrics)}"
     where = (lambda r: " ".join(str(r.get(c, "")) for c in CASE_COLUMNS[1:5])) if group is None else (lambda r: r[group])  # noqa: E731
     notes = failure_notes(failed, where)
-    if name in TABLE_NOTES:
-        notes += "\n" + TABLE_NOTES[name]
+    if ts.note:
+        notes += "\n" + ts.note
     if "vertex_error_mm" in metrics and reference_floor(df, group):
         notes += "\n\n" + reference_floor(df, group)
-    if name == "runtime_vs_error" and speedups(df):
+    if ts.pareto and speedups(df):
         notes += "\n\n" + speedups(df)
     notes += "\n\n" + seeds_note(df, group)
     if commits_note(df):
@@ -628,15 +606,16 @@ def write_table(dirs, name: str, out: Path, command: str | None = None, methods:
     out = gpu_out(Path(out), df)
     paths = [out.with_suffix(".md"), out.with_suffix(".tex"), out.with_suffix(".csv"), out.parent / f"{out.name}_runtime.png"]
     with atomic_write(paths[0], "w") as f:
-        f.write(f"# {name}\n\n{_markdown(t)}\n{notes}\n\n{about}\n\n{prov}\n")
+        mixed = f" (rows from {df['commit'].nunique()} commits)" if commits_note(df) else ""
+        f.write(f"# {name}{mixed}\n\n{_markdown(t)}\n{notes}\n\n{about}\n\n{prov}\n")
     header = (prov, *about.split("\n\n"), seeds_note(df, group), *([commits_note(df)] if commits_note(df) else []))
     comment = "".join(f"{{c}} {line}\n" for line in header)
     with atomic_write(paths[1], "w") as f:
         f.write(comment.format(c="%") + t.style.to_latex(hrules=True, multicol_align="c"))
     write_csv(paths[2], header, t)
-    (pareto_plot if name == "runtime_vs_error" else runtime_plot)(df, paths[3], title=name)
-    if name in BAR_FIGURES:
-        paths.append(metric_bars_plot(df, BAR_FIGURES[name], out.parent / f"{out.name}_bars.png", title=name))
+    (pareto_plot if ts.pareto else runtime_plot)(df, paths[3], title=name)
+    if ts.bars:
+        paths.append(metric_bars_plot(df, list(ts.bars), out.parent / f"{out.name}_bars.png", title=name))
     return paths
 
 
@@ -676,7 +655,8 @@ def write_summary(sweep_dir: Path) -> Path:
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description="Paper-style tables from run or sweep directories.")
     parser.add_argument("dirs", nargs="*", type=Path, help="run or sweep directories (searched for metrics.json)")
-    parser.add_argument("--table", default="baseline", choices=sorted(TABLES))
+    parser.add_argument("--table", default="baseline", choices=sorted(n for n, t in SPECS.items() if t.metrics),
+                        help="which table's spec (drapebench/table_specs.py): its metrics, column groups, notes and plots")
     parser.add_argument("--methods", type=lambda s: [m for m in s.split(",") if m],
                         help="comma-separated methods to show, in this order (default: every method of the runs)")
     parser.add_argument("--garments", type=lambda s: [g for g in s.split(",") if g],

@@ -33,7 +33,7 @@ def test_write_table_outputs_with_provenance(tmp_path):
     assert "\\begin{tabular}" in tex.read_text() and "abc123" in tex.read_text()
     assert pd.read_csv(csv, comment="#", header=[0, 1], index_col=0).shape == (2, 6)
     assert png.stat().st_size > 1000
-    with pytest.raises(KeyError, match="tables: baseline"):
+    with pytest.raises(KeyError, match="no table 'nope'; tables: baseline"):
         write_table([FIXTURES], "nope", tmp_path / "x")
 
 
@@ -262,7 +262,8 @@ def test_generalisation_matrix_groups_columns_by_experiment_and_explains_empty_c
     import json
     import shutil
 
-    from drapebench.report import TABLE_NOTES, write_table
+    from drapebench.report import write_table
+    from drapebench.table_specs import SPECS
 
     for i, (method, experiment) in enumerate([("lbs", "unseen_motion"), ("gensim", "unseen_motion"), ("gensim", "other_body")]):
         d = tmp_path / f"{i}_{method}"
@@ -273,7 +274,7 @@ def test_generalisation_matrix_groups_columns_by_experiment_and_explains_empty_c
     header = next(line for line in md.splitlines() if line.startswith("| method"))
     assert "unseen_motion err. (mm)" in header and "other_body err. (mm)" in header
     lbs_row = next(line for line in md.splitlines() if line.startswith("| lbs"))
-    assert lbs_row.rstrip(" |").endswith("–") and TABLE_NOTES["gensim_table1"] in md
+    assert lbs_row.rstrip(" |").endswith("–") and SPECS["gensim_table1"].note in md
 
 
 def test_energy_column_sums_the_physical_terms_and_scenes_split_motions(tmp_path):
@@ -419,7 +420,7 @@ def test_a_seed_averages_its_scenes_first_and_a_seed_on_other_scenes_is_flagged(
 def test_a_table_from_several_commits_says_so(tmp_path):
     _seeded_runs(tmp_path, [1.0, 2.0, 4.0], commits=("abc123", "def4567", "abc123"))
     text = write_table([tmp_path], "baseline", tmp_path / "out" / "t", command="pytest")[0].read_text()
-    assert "**Mixed commits**: the rows come from 2 commits" in text and "gaps abc123, def4567" in text and "pbs abc123" in text
+    assert text.startswith("# baseline (rows from 2 commits)") and "**Mixed commits**: the rows come from 2 commits" in text and "gaps abc123, def4567" in text and "pbs abc123" in text
 
 
 def test_a_per_run_table_keeps_seeds_apart(tmp_path):

@@ -1,0 +1,219 @@
+"""Regenerate the committed tables with one command: ``python -m drapebench.reproduce [--tables a,b] [--quick]``
+(``make reports``).
+
+For each table (:mod:`drapebench.table_specs`, in registry order) it expands the table's sweeps into runs (the
+experiment's ``hydra.sweeper.params`` and the sweep's overrides, as Hydra's basic sweeper would), runs each one
+that has not finished (a run folder ``<root>/<table>/<sweep>/<job>_<hash of its overrides>`` holding
+``metrics.json`` or ``failed.json`` and a ``reproduce.json`` with the same overrides and commit is finished: a
+stopped and restarted command goes on where it stopped), printing its progress and an estimate of what is left,
+then writes the table from those runs and, at the end, ``claims.md`` over the tables written. The runs record
+``viz=none`` (no recordings: a table needs none).
+
+``--quick`` is the same pipeline on a tiny scene (the low-resolution body, 8 frames, nothing trained:
+``train.epochs=0``, seed 0; every method of a sweep but only the first value of its other swept keys, so every
+row exists) into ``outputs/reproduce_quick/``, for a check that every table's pipeline runs, not for numbers.
+The full command writes into ``reports/`` (``--out`` elsewhere).
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from drapebench.cache import PROJECT_ROOT, atomic_write
+from drapebench.table_specs import SPECS, Sweep, TableSpec, spec, sweeps
+
+QUICK = ("body=anny_lowres", "motion.n_frames=6", "motion.transition=2", "train.epochs=0", "seed=0")
+QUICK_KEEP = ("method",)  # the key whose every value --quick keeps: the table's rows
+RUN = ("viz=none", "hydra.mode=RUN")
+
+
+@dataclass(frozen=True)
+class Job:
+    """One run of a table's sweep: its overrides (one value per key) and its folder."""
+
+    table: str
+    sweep: Sweep
+    overrides: tuple
+    dir: Path
+
+
+def expand(sweep: Sweep, quick: bool = False) -> list:
+    """The runs of ``sweep``: one override list each (``key=value``), the experiment's sweeper params crossed with
+    the sweep's overrides as Hydra's basic sweeper crosses them (a glob such as ``method=glob(*)`` expanded over
+    the config group); with ``quick``, :data:`QUICK` and only the first value of keys not in :data:`QUICK_KEEP`."""
+    from hydra import compose, initialize_config_dir
+    from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
+    from hydra.core.global_hydra import GlobalHydra
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    from drapebench.schema import register
+
+    register()
+    with initialize_config_dir(config_dir=str(PROJECT_ROOT / "conf"), version_base="1.3"):
+        cfg = compose("config", overrides=[f"experiment={sweep.experiment}"], return_hydra_config=True)
+        params = [f"{k}={v}" for k, v in (cfg.hydra.sweeper.get("params") or {}).items()]
+        parser = OverridesParser.create(config_loader=GlobalHydra.instance().config_loader())
+        overrides = parser.parse_overrides([*params, *sweep.overrides, *(QUICK if quick else ())])
+        jobs = BasicSweeper.split_arguments(overrides, None)[0]
+    if quick:
+        seen, kept = set(), []
+        for job in jobs:
+            key = tuple(o for o in job if o.split("=", 1)[0].lstrip("+") not in QUICK_KEEP)
+            first = all(o == _first(jobs, o) for o in key)
+            if first and tuple(job) not in seen:
+                seen.add(tuple(job))
+                kept.append(job)
+        jobs = kept
+    return [tuple(j) for j in jobs]
+
+
+def _first(jobs: list, override: str) -> str:
+    key = override.split("=", 1)[0]
+    return next(o for o in jobs[0] if o.split("=", 1)[0] == key)
+
+
+def plan(names: list, root: Path, quick: bool = False) -> list:
+    """Every :class:`Job` of tables ``names`` (their own sweeps; a table reading another's runs adds none), in
+    order, under ``root``."""
+    jobs = []
+    for name in names:
+        s = spec(name)
+        if s.sweeps_of:
+            continue
+        for i, sweep in enumerate(s.sweeps):
+            for k, overrides in enumerate(expand(sweep, quick)):
+                key = hashlib.sha256(" ".join([sweep.experiment, *overrides]).encode()).hexdigest()[:10]
+                jobs.append(Job(name, sweep, overrides, root / name / str(i) / f"{k}_{key}"))
+    return jobs
+
+
+def commit() -> str:
+    """The code the runs execute (:func:`drapebench.results.git_commit`, ``-dirty`` with uncommitted changes)."""
+    from drapebench.results import git_commit
+
+    return git_commit()
+
+
+def finished(job: Job, at: str) -> bool:
+    """Whether ``job`` has run to an end (results or a recorded failure) with the same overrides at commit ``at``."""
+    stamp = job.dir / "reproduce.json"
+    if not stamp.exists() or not ((job.dir / "metrics.json").exists() or (job.dir / "failed.json").exists()):
+        return False
+    done = json.loads(stamp.read_text())
+    return done.get("overrides") == list(job.overrides) and done.get("commit") == at
+
+
+def run_job(job: Job, at: str) -> int:
+    """Run ``job`` in a fresh folder (an unfinished one is removed first) and stamp it; returns run.py's status."""
+    if job.dir.exists():
+        shutil.rmtree(job.dir)
+    job.dir.parent.mkdir(parents=True, exist_ok=True)
+    argv = [sys.executable, str(PROJECT_ROOT / "run.py"), f"experiment={job.sweep.experiment}", *job.overrides, *RUN,
+            f"hydra.run.dir={job.dir}"]  # fmt: skip
+    log = job.dir.parent / f"{job.dir.name}.log"
+    with open(log, "w") as f:
+        code = subprocess.run(argv, cwd=PROJECT_ROOT, stdout=f, stderr=subprocess.STDOUT, env=dict(os.environ, DRAPEBENCH_PROGRESS="0")).returncode
+    if (job.dir / "metrics.json").exists() or (job.dir / "failed.json").exists():
+        with atomic_write(job.dir / "reproduce.json", "w") as f:
+            json.dump({"overrides": list(job.overrides), "commit": at, "experiment": job.sweep.experiment}, f)
+    return code
+
+
+def _clock(seconds: float) -> str:
+    return f"{int(seconds // 3600)}:{int(seconds % 3600 // 60):02d}:{int(seconds % 60):02d}"
+
+
+def run_all(jobs: list, at: str, say=print) -> list:
+    """Run the unfinished ``jobs`` in order, saying per run its place, what it is and an estimate of the time left
+    (the mean time of the runs done so far in this call times the runs left); returns the jobs that did not finish."""
+    todo = [j for j in jobs if not finished(j, at)]
+    say(f"{len(jobs)} runs, {len(jobs) - len(todo)} already finished at {at[:12]}, {len(todo)} to run")
+    failed, start = [], time.monotonic()
+    for i, job in enumerate(todo, start=1):
+        left = "" if i == 1 else f", about {_clock((time.monotonic() - start) / (i - 1) * (len(todo) - i + 1))} left"
+        say(f"[{i}/{len(todo)}] {job.table}: {job.sweep.experiment} {' '.join(job.overrides)}{left}")
+        if run_job(job, at) != 0 and not finished(job, at):
+            failed.append(job)
+            say(f"    stopped without a result; its log: {job.dir.parent / (job.dir.name + '.log')}")
+    return failed
+
+
+def write_tables(names: list, root: Path, out: Path, quick: bool = False, say=print) -> list:
+    """Write each table of ``names`` into ``out`` from its runs under ``root`` (benchmarks: run the script;
+    ``--quick`` runs them with their quick option where they have one); returns the paths written."""
+    from drapebench.report import evaluation_plot, write_table
+
+    paths = []
+    for name in names:
+        s = spec(name)
+        target = out / name
+        if s.bench:
+            argv = [sys.executable, *[a.format(out=target) for a in s.bench]] + (["--frames", "8"] if quick and "bench_vae" in s.bench[0] else [])
+            if quick and "bench_scaling" in s.bench[0]:
+                say(f"{name}: skipped by --quick (a benchmark of minutes per point; {s.command()})")
+                continue
+            subprocess.run(argv, cwd=PROJECT_ROOT, check=True)
+            paths.append(target.with_suffix(".csv"))
+            continue
+        dirs = [j.dir for j in plan([s.sweeps_of or name], root, quick) if finished(j, commit())]
+        if not dirs:
+            say(f"{name}: no finished runs, not written")
+            continue
+        if s.evaluations:
+            paths.append(evaluation_plot(dirs, target.with_suffix(".png"), title=s.what))
+            continue
+        paths += write_table(dirs, name, target, command=s.command() + (" --quick" if quick else ""),
+                             methods=list(s.methods) or None, garments=list(s.garments) or None)  # fmt: skip
+    return paths
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description="Run every committed table's experiments and write the tables and claims.md.")
+    parser.add_argument("--tables", type=lambda t: [x for x in t.split(",") if x], default=list(SPECS),
+                        help=f"comma-separated tables (default: all): {', '.join(SPECS)}")
+    parser.add_argument("--quick", action="store_true", help="every table's pipeline on a tiny scene, untrained, into outputs/reproduce_quick")
+    parser.add_argument("--out", type=Path, help="where the tables go (default: reports/, or outputs/reproduce_quick/reports with --quick)")
+    parser.add_argument("--runs", type=Path, help="where the runs go (default: outputs/reproduce, or outputs/reproduce_quick/runs)")
+    parser.add_argument("--dry-run", action="store_true", help="list the runs and whether each has finished, run nothing")
+    args = parser.parse_args(argv)
+    unknown = [t for t in args.tables if t not in SPECS]
+    if unknown:
+        parser.error(f"--tables: no table {', '.join(unknown)}; tables: {', '.join(SPECS)}")
+    base = PROJECT_ROOT / "outputs" / ("reproduce_quick" if args.quick else "reproduce")
+    root = args.runs or (base / "runs" if args.quick else base)
+    out = args.out or (base / "reports" if args.quick else PROJECT_ROOT / "reports")
+    names = [n for n in SPECS if n in args.tables or _needed_by(n, args.tables)]
+    jobs = plan(names, root, args.quick)
+    at = commit()
+    if args.dry_run:
+        for j in jobs:
+            print(f"{'done' if finished(j, at) else 'todo'}  {j.table}: {j.sweep.experiment} {' '.join(j.overrides)}")
+        return 0
+    failed = run_all(jobs, at)
+    paths = write_tables([n for n in names if n in args.tables], root, out, args.quick)
+    from drapebench.claims import write_claims
+
+    paths.append(write_claims(out))
+    for p in paths:
+        print(p)
+    if failed:
+        print(f"{len(failed)} runs stopped without a result (their logs are named above); rerun the command to retry them")
+    return 1 if failed else 0
+
+
+def _needed_by(name: str, tables: list) -> bool:
+    """Whether a table of ``tables`` reads ``name``'s runs."""
+    return any(SPECS[t].sweeps_of == name for t in tables if t in SPECS)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,68 @@
+"""One command regenerates every committed table: the table specs, the sweeps' expansion into runs, the quick
+pipeline end to end, and resuming where a stopped command left off."""
+
+import re
+from pathlib import Path
+
+import pytest
+
+from drapebench.claims_catalogue import CLAIMS
+from drapebench.reproduce import expand, finished, main, plan
+from drapebench.table_file import read_csv, verified_text
+from drapebench.table_specs import SPECS, Sweep
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def test_a_sweep_expands_as_hydra_sweeps_it_and_quick_keeps_every_row():
+    jobs = expand(Sweep("gaps_table3", ("seed=0,1,2",)))  # the experiment's methods x shapes, crossed with the seeds
+    assert len(jobs) == 2 * 3 * 3 and all(any(o.startswith("motion.betas=") for o in j) for j in jobs)
+    assert {o for j in jobs for o in j if o.startswith("method=")} == {"method=gaps", "method=gaps_no_inext"}
+    quick = expand(Sweep("gaps_table3", ("seed=0,1,2",)), quick=True)
+    assert len(quick) == 2 and all("seed=0" in j and "train.epochs=0" in j for j in quick)
+    assert len({o for j in quick for o in j if o.startswith("motion.betas=")}) == 1
+    one = expand(Sweep("gaps_table3", ("method=gaps", "seed=1")))  # an override replaces the experiment's list
+    assert len(one) == 3 and all("method=gaps" in j and "seed=1" in j for j in one)
+
+
+def test_a_glob_sweeps_every_method_config():
+    methods = {o.split("=")[1] for j in expand(Sweep("runtime_vs_error", ("garment=tshirt",)), quick=True) for o in j if o.startswith("method=")}
+    assert methods == {p.stem for p in (ROOT / "conf" / "method").glob("*.yaml")}
+
+
+def test_every_committed_table_has_one_spec_and_no_command_lives_elsewhere():
+    for csv in (ROOT / "reports").glob("*.csv"):
+        assert csv.stem.removesuffix("_gpu") in SPECS, f"{csv.name} has no spec in drapebench/table_specs.py"
+    for c in CLAIMS:
+        assert not c.table or c.table in SPECS, c.id
+    experiments = {p.stem for p in (ROOT / "conf" / "experiment").glob("*.yaml")}
+    for s in SPECS.values():
+        assert all(sw.experiment in experiments for sw in s.sweeps), s.name
+        assert bool(s.metrics) != bool(s.bench or s.evaluations), s.name
+    for y in (ROOT / "conf" / "experiment").glob("*.yaml"):  # the sweeps are the specs', not YAML comments'
+        assert not re.search(r"^#.*python (run\.py|-m drapebench\.report)", y.read_text(), re.M), y.name
+
+
+def test_quick_writes_a_table_and_claims_and_a_restart_reruns_nothing(tmp_path, capsys):
+    """The fast suite runs one table's whole pipeline (lbs, one run); the slow test below runs every table's."""
+    args = ["--quick", "--tables", "baseline", "--runs", str(tmp_path / "runs"), "--out", str(tmp_path / "out")]
+    assert main(args) == 0
+    said = capsys.readouterr().out
+    assert "1 runs, 0 already finished" in said and "[1/1] baseline: baseline method=lbs" in said
+    table = read_csv(tmp_path / "out" / "baseline.csv")
+    assert [r[1][0] for r in table.rows] == ["lbs"] and "drapebench.reproduce --tables baseline --quick" in table.comments[0]
+    assert (tmp_path / "out" / "claims.md").exists()
+    (job,) = plan(["baseline"], tmp_path / "runs", quick=True)
+    assert main(args) == 0 and "1 runs, 1 already finished" in capsys.readouterr().out  # resumed: nothing reruns
+    (job.dir / "reproduce.json").write_text('{"overrides": [], "commit": "other"}')  # another config or commit
+    assert not finished(job, "other") and main([*args, "--dry-run"]) == 0 and "todo  baseline" in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_quick_runs_every_table_s_pipeline(tmp_path):
+    """Every table's sweeps on the tiny scene, its table and the claims (about 40 min on 2 busy cores)."""
+    assert main(["--quick", "--runs", str(tmp_path / "runs"), "--out", str(tmp_path / "out")]) == 0
+    for name, s in SPECS.items():
+        if s.metrics:
+            path = tmp_path / "out" / f"{name}.csv"
+            assert read_csv(path).rows if s.group else verified_text(path), name
