@@ -108,8 +108,8 @@ RULES = (
     "distinct cases hold (and not for the control); **scene-determined**: the cases that hold, the control holds "
     "too; **inside the spread**: no case holds or fails beyond the bands; **too small to tell**: every difference is "
     "under the floor; **not reproduced**: no case holds and one holds the other way; **stale: ...**: a row it reads "
-    "comes from another commit than its table's or from method code that has changed since (the verdict its rows "
-    "would give follows; it can hold, never reproduce); **not run**: a cell it needs is missing or failed; **not "
+    "comes from another commit than its table's or from method code that has changed since (what its rows "
+    "would give follows, *holds* where they would reproduce it: a stale claim can hold, never reproduce); **not run**: a cell it needs is missing or failed; **not "
     "testable here**: no committed table can test it (what it needs is said). A level on a scene unlike the paper's "
     "is marked *indicative*."
 )
@@ -299,8 +299,8 @@ def evaluate(claim: Claim, table: Table | None, floors: dict | None = None, code
     controls = {r for c in claim.control for r in ([c] if isinstance(c, str) else c.values())}
     rows = {x for c in found for x in (c.hi, c.lo) if x != "bound"} | controls
     stale = stale_rows(sorted(rows & set(table.rows())), table.row_commits, table.commits, code)
-    if stale:
-        verdict = f"stale: {verdict}"
+    if stale:  # it can hold, never reproduce
+        verdict = f"stale: {'holds' if verdict == 'reproduced' else verdict}"
     if not claim.comparable:
         verdict += " (*indicative*: scene unlike the paper's)"
     return Judgement(shown, verdict, control_text, stale)

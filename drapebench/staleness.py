@@ -134,7 +134,9 @@ def stale_rows(rows, row_commits: dict, table_commits, code: dict | None = None)
         commits = row_commits.get(row, list(table_commits))
         full = [known(c) for c in commits]
         impl = implementation(row)
-        if None in full:
+        if not commits:
+            out[row] = "its table names no commit its runs were made at"
+        elif None in full:
             out[row] = f"its commit {commits[full.index(None)]} is not in this repository's history (or ran on uncommitted changes)"
         elif table_commit is None:
             out[row] = "the table's commits are not on one line of history"

@@ -123,7 +123,7 @@ def test_a_row_from_another_commit_or_changed_code_makes_the_claim_stale(tmp_pat
     rows = {"hi": ["5 ± 0.5 (n=3)", "6 ± 0.5 (n=3)"], "lo": ["1 ± 0.5 (n=3)", "2 ± 0.5 (n=3)"]}
     t = _table(tmp_path, rows, commits=[parent, head], mixed=f"hi {parent[:7]}; lo {head[:7]}")
     j = evaluate(ORDER, t)
-    assert j.verdict == "stale: reproduced" and list(j.stale) == ["hi"] and "not the table's" in j.stale["hi"]
+    assert j.verdict == "stale: holds" and list(j.stale) == ["hi"] and "not the table's" in j.stale["hi"]
     t = _table(tmp_path, rows, commits=["0123456789abcdef0123456789abcdef01234567"])
     assert "not in this repository's history" in evaluate(ORDER, t).stale["hi"]
     # a method's code that differs from the code the verdicts are judged against
