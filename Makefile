@@ -9,8 +9,9 @@ export RERUN_ANALYTICS ?= 0
 
 .PHONY: venv run test test-slow bench reports clean-cache
 
-# `make run` installs what run.py uses (the package + the Newton/warp reference simulator, about 2.9 GB);
-# `make test` adds the test tools and Anny (.[dev], about 0.13 GB more). pip shows its progress; set
+# `make run` installs what run.py uses by default (the package + the extras sim, viz and mesh: the Newton/warp
+# reference simulator, rerun, pymeshlab; about 3 GB); `make test` adds the test tools, Anny, usd-core and the
+# submitit launcher (.[dev], about 0.3 GB more). pip shows its progress; set
 # PIP_NO_CACHE_DIR=1 to keep pip from also caching the downloads (about 1.3 GB) under ~/.cache/pip.
 $(BIN)/.installed: pyproject.toml
 	@echo "== [1/3] creating $(VENV) (first use only; about 2.9 GB and 1-2 minutes in all)"
@@ -18,13 +19,13 @@ $(BIN)/.installed: pyproject.toml
 	$(BIN)/pip install -q --upgrade pip
 	@echo "== [2/3] installing $(TORCH_SPEC) (about 0.75 GB installed for the CPU build)"
 	$(BIN)/pip install --progress-bar on "$(TORCH_SPEC)"
-	@echo "== [3/3] installing drapebench and its dependencies (rerun, warp/newton, pymeshlab, ...)"
-	$(BIN)/pip install --progress-bar on -e ".[sim]"
+	@echo "== [3/3] installing drapebench and its dependencies (rerun, warp/newton, pymeshlab, mlflow-skinny, ...)"
+	$(BIN)/pip install --progress-bar on -e ".[sim,viz,mesh]"
 	@du -sh $(VENV) | sed 's/^/== .venv is /'
 	touch $@
 
 $(BIN)/.installed-dev: $(BIN)/.installed
-	@echo "== installing the test tools (pytest, anny, submitit launcher)"
+	@echo "== installing the test tools (pytest, anny, usd-core, submitit launcher)"
 	$(BIN)/pip install --progress-bar on -e ".[dev]"
 	touch $@
 

@@ -266,6 +266,10 @@ def _run(cfg: DictConfig, out: Path) -> dict:
         from drapebench.export import require_usd
 
         require_usd()  # before the drape, not after it
+    if viz == "rerun":
+        from drapebench.viz import require_rerun
+
+        require_rerun()  # likewise
     torch.set_num_threads(job_threads(cfg))
     torch.manual_seed(int(cfg.seed))
     method_cls = method_class(cfg)  # fail fast on an unknown method

@@ -94,12 +94,11 @@ def drape_from_run(run_dir: str | Path) -> Drape:
 
 
 def require_usd() -> None:
-    """Raise ImportError naming the install when usd-core (the ``pxr`` package) is missing."""
-    try:
-        import pxr.Usd  # noqa: F401
-    except ImportError as err:
-        raise ImportError('export=usd needs usd-core: pip install -e ".[export]" (or pip install usd-core); '
-                          "obj and pc2 need nothing more") from err  # fmt: skip
+    """Raise :class:`drapebench.extras.MissingExtra` naming the install when usd-core (the ``pxr`` package) is
+    missing (obj and pc2 need nothing more)."""
+    from drapebench.extras import require
+
+    require("pxr.Usd", "export=usd")
 
 
 def _obj_faces(faces: np.ndarray) -> bytes:

@@ -8,6 +8,13 @@ import numpy as np
 import torch
 
 from drapebench.cache import atomic_write
+from drapebench.extras import require
+
+
+def require_rerun(module: str = "rerun"):
+    """rerun (or ``module``, one of its sub-modules); :class:`drapebench.extras.MissingExtra` naming the ``viz``
+    extra when rerun-sdk is not installed."""
+    return require(module, "viz=rerun (the drape.rrd recording; viz=none runs without it)")
 
 
 def vertex_strain(x: torch.Tensor, topology) -> np.ndarray:
@@ -103,7 +110,7 @@ def _blueprint(name: str, eye: np.ndarray, target: np.ndarray, hidden: list[str]
     """The view a recording opens on: the 3D scene framed by ``eye``/``target`` (and, per stage in ``moved``,
     a 3D view of the body and ``moved/<stage>``) beside the per-frame metric plots and the colour legend, on
     the ``frame`` timeline."""
-    import rerun.blueprint as rrb
+    rrb = require_rerun("rerun.blueprint")
 
     overrides = {e: rrb.EntityBehavior(visible=False) for e in hidden} or None
     eyes = rrb.EyeControls3D(position=eye, look_target=target, eye_up=(0.0, 0.0, 1.0))
@@ -124,7 +131,7 @@ def _blueprint(name: str, eye: np.ndarray, target: np.ndarray, hidden: list[str]
 def _send_mesh(stream, entity: str, x: torch.Tensor, faces: torch.Tensor, index, albedo=None, colors=None) -> None:
     """Log mesh ``entity`` over the timeline ``index``: triangles and albedo once (static), positions
     and vertex normals (shading) of every frame of ``x`` (T, V, 3), and per-frame ``colors`` (T, V, 3) uint8."""
-    import rerun as rr
+    rr = require_rerun()
 
     from drapebench.geometry.ops import vertex_normals
 
@@ -168,7 +175,7 @@ def record_drape(
     opens on the ``frame`` timeline with a camera that frames the whole body. ``in_place`` (T, 3), the
     root translation (m), has its horizontal part removed from every mesh: the body walks in place and the
     camera stays close (the metrics are computed on world positions)."""
-    import rerun as rr
+    rr = require_rerun()
 
     legend = LEGEND
     if in_place is not None:

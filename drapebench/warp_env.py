@@ -10,10 +10,11 @@ import os
 import sys
 
 from drapebench.cache import cache_dir
+from drapebench.extras import require
 
 os.environ.setdefault("WARP_CACHE_PATH", str(cache_dir("warp")))
 
-import warp as wp  # noqa: E402
+wp = require("warp", "the reference simulator (and the warp BVH path of the signed distance)")
 
 wp.config.quiet = True
 wp.config.log_level = wp.LOG_WARNING  # no per-module load/compile timing lines in run logs

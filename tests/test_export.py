@@ -124,6 +124,6 @@ def test_export_errors_name_the_fix(finished_run, tmp_path, capsys, monkeypatch)
     monkeypatch.setitem(sys.modules, "pxr.Usd", None)  # usd-core not installed
     with pytest.raises(SystemExit):
         main([str(finished_run[0])])
-    assert 'export=usd needs usd-core: pip install -e ".[export]"' in capsys.readouterr().err
+    assert "export=usd needs usd-core, which is not installed: pip install 'drapebench[export]'" in capsys.readouterr().err
     with pytest.raises(ValueError, match="export format 'fbx' is not one of usd, obj, pc2"):
         export_drape(tmp_path, None, "fbx")

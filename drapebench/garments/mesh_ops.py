@@ -89,7 +89,9 @@ def isotropic_remesh(V: np.ndarray, F: np.ndarray, target: float, iterations: in
     """pymeshlab isotropic explicit remeshing to mean edge length ``target`` (m); boundaries are
     resampled but kept on the cut (surface distance checked within 2 mm), then relaxed along
     themselves and remeshed once more so boundary triangles stay well shaped."""
-    import pymeshlab
+    from drapebench.extras import require
+
+    pymeshlab = require("pymeshlab", "making a parametric garment (its remeshing, once per garment: the result is cached in data/cache/garments)")
 
     ms = pymeshlab.MeshSet()
     ms.add_mesh(pymeshlab.Mesh(V.astype(np.float64), F.astype(np.int32)))

@@ -150,7 +150,9 @@ def placement(V: np.ndarray, body_V: np.ndarray, report: GarmentReport) -> None:
 
 def self_intersections(V: np.ndarray, F: np.ndarray, report: GarmentReport) -> None:
     """Faces intersecting other faces of the garment (pymeshlab)."""
-    import pymeshlab
+    from drapebench.extras import require
+
+    pymeshlab = require("pymeshlab", "the garment check for self-intersections")
 
     ms = pymeshlab.MeshSet()
     ms.add_mesh(pymeshlab.Mesh(V.astype(np.float64), F.astype(np.int32)))

@@ -18,7 +18,8 @@ Two paths give the same result up to a stated tolerance:
   Against the exact path: distances agree within 1e-6 m (a float32 near-tie between two faces), the
   inside test agrees except within about 1e-6 m of the surface, where the fast winding number of
   the exact path is itself approximate.
-- ``exact=True`` (and any mesh that is not closed): libigl in float64. The sign is libigl's fast
+- ``exact=True`` (and any mesh that is not closed, and every query where warp, the ``sim`` extra, is
+  not installed): libigl in float64. The sign is libigl's fast
   winding number of the whole mesh (Barill et al. 2018); the closest point is searched among the
   body faces that can hold it: per frame, the distance r from every point to its nearest body vertex
   bounds its distance to the surface, so only faces whose bounding box comes within r of the
@@ -31,18 +32,22 @@ is a signed distance whose gradient w.r.t. ``x`` is the exact one (away from the
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
+from functools import cache
 from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
 from scipy.spatial import cKDTree
 
+from drapebench.extras import MissingExtra
 from drapebench.geometry.proximity import NearestVertex, _as_batch, nearest_body_vertex, nearest_from_indices
 
 if TYPE_CHECKING:
     from drapebench.geometry import body_bvh
 
+log = logging.getLogger("drapebench")
 
 @dataclass
 class SurfacePoint:
@@ -57,12 +62,26 @@ class SurfacePoint:
     normal: torch.Tensor
 
 
+@cache
 def _body_bvh():
     """:mod:`drapebench.geometry.body_bvh`, imported on first use: importing it loads and initialises warp
-    (about 0.3 s), which a caller that never queries a posed body (the VAE's inference, for one) skips."""
-    from drapebench.geometry import body_bvh
-
+    (about 0.3 s), which a caller that never queries a posed body (the VAE's inference, for one) skips.
+    None without warp (the ``sim`` extra): every query then takes the exact libigl path (said once in the log)."""
+    try:
+        from drapebench.geometry import body_bvh
+    except MissingExtra as err:
+        log.info("%s; signed distances and inside tests take the exact libigl path", err)
+        return None
     return body_bvh
+
+
+def _fast_path(faces: torch.Tensor, exact: bool):
+    """The warp BVH module when the default path applies to body ``faces`` (F,3): not ``exact``, warp
+    installed, a closed and consistently oriented mesh; else None (the exact path)."""
+    if exact:
+        return None
+    bvh = _body_bvh()
+    return bvh if bvh is not None and bvh.is_closed(faces) else None
 
 
 # --- exact point-triangle distance ----------------------------------------------------------------
@@ -185,8 +204,9 @@ def inside_body(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: t
     fast winding number, CPU float64 (module docstring)."""
     points, body_vertices = _as_batch(points, body_vertices)
     faces = torch.as_tensor(body_faces).long()
-    if not exact and _body_bvh().is_closed(faces):
-        return (_body_bvh().query(points, body_vertices, faces).winding > 0).to(points.device)
+    bvh = _fast_path(faces, exact)
+    if bvh is not None:
+        return (bvh.query(points, body_vertices, faces).winding > 0).to(points.device)
     import igl
 
     F = faces.detach().cpu().numpy().astype(np.int64)
@@ -245,9 +265,10 @@ def closest_body_point(points: torch.Tensor, body_vertices: torch.Tensor, body_f
     points, body_vertices = _as_batch(points, body_vertices)
     faces = _checked_faces(body_faces, body_vertices)
     searched = _searched_faces(outer_faces, faces)
-    if exact or not _body_bvh().is_closed(faces):
+    bvh = _fast_path(faces, exact)
+    if bvh is None:
         return _closest_exact(points, body_vertices, faces, searched)
-    return _surface_point(points, body_vertices, faces, _body_bvh().query(points, body_vertices, faces, outer_faces=outer_faces))
+    return _surface_point(points, body_vertices, faces, bvh.query(points, body_vertices, faces, outer_faces=outer_faces))
 
 
 def body_proximity(points: torch.Tensor, body_vertices: torch.Tensor, body_normals: torch.Tensor, body_faces: torch.Tensor,
@@ -263,10 +284,11 @@ def body_proximity(points: torch.Tensor, body_vertices: torch.Tensor, body_norma
     points, body_vertices, body_normals = _as_batch(points, body_vertices, body_normals)
     faces = _checked_faces(body_faces, body_vertices)
     searched = _searched_faces(outer_faces, faces)
-    if exact or not _body_bvh().is_closed(faces):
+    bvh = _fast_path(faces, exact)
+    if bvh is None:
         candidates = None if outer_faces is None else torch.unique(faces[searched])
         return _closest_exact(points, body_vertices, faces, searched), nearest_body_vertex(points, body_vertices, body_normals, candidates)
-    found = _body_bvh().query(points, body_vertices, faces, nearest_vertex=True, outer_faces=outer_faces)
+    found = bvh.query(points, body_vertices, faces, nearest_vertex=True, outer_faces=outer_faces)
     return _surface_point(points, body_vertices, faces, found), nearest_from_indices(points, body_vertices, body_normals, found.vertex.to(points.device))
 
 

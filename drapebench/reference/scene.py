@@ -6,13 +6,15 @@ about 50 s the first time on CPU).
 
 from __future__ import annotations
 
-import newton
 import numpy as np
 
+from drapebench.extras import require
 from drapebench.physics.material import Material
 from drapebench.reference.materials import panel_coordinates, style3d_parameters, vbd_edge_stiffness, vbd_parameters
 from drapebench.reference.settings import SimSettings
 from drapebench.warp_env import wp
+
+newton = require("newton", "the reference simulator (reference=vbd|style3d, method=pbs, data presets)")
 
 
 @wp.kernel
