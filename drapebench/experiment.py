@@ -4,7 +4,7 @@ Outputs in the Hydra run directory: ``metrics.json`` (one flat record), ``frames
 frame), ``prediction.h5``, ``drape.rrd`` (unless ``viz=none``), ``export/`` (with ``export=usd|obj|pc2``:
 drapebench.export), ``config.yaml`` (resolved, written first: it says whose folder it is) and ``env.json``
 (commit, package versions, device, threads), and ``losses.csv`` for a learned method (drapebench.train). Every
-file is written atomically. A folder that holds another run's results is refused; an earlier run of the same
+file is written atomically. The finished run is then logged to MLflow (drapebench.tracker; ``tracker=none``: not). A folder that holds another run's results is refused; an earlier run of the same
 config is cleared (logged).
 """
 
@@ -29,6 +29,7 @@ from drapebench.errors import DrapeFailed, NonFiniteDrape
 from drapebench.results import METRICS, environment, git_commit, headline, write_prediction
 from drapebench.scene import Scene
 from drapebench.schema import check_keys
+from drapebench.tracker import track_run
 from drapebench.train.checkpoint import write_losses
 
 log = logging.getLogger("drapebench")
@@ -236,14 +237,15 @@ def run(cfg: DictConfig, out_dir: str | Path | None = None) -> dict:
     claim_run_dir(out, OmegaConf.to_yaml(cfg, resolve=True))
     try:
         with forcing(bool(cfg.force)):
-            return _run(cfg, out)
+            record = _run(cfg, out)
     except DrapeFailed as err:
         if getattr(cfg.on_failure, "name", cfg.on_failure) != "record":
             raise
         record = failure_record(cfg, err)
         write_json(out / "failed.json", record)
         log.error("run failed (recorded in %s, on_failure=record): %s", out / "failed.json", err)
-        return record
+    track_run(cfg, out, record)
+    return record
 
 
 def failure_record(cfg: DictConfig, err: BaseException) -> dict:

@@ -162,6 +162,17 @@ class ExportFormat(Enum):
     pc2 = "pc2"  # export/pc2/: a PC2 point cache and a rest OBJ each of garment and body
 
 
+class TrackerName(Enum):
+    mlflow = "mlflow"  # every run logged to MLflow (drapebench.tracker), the default
+    none = "none"  # the run folder only
+
+
+@dataclass
+class TrackerConf:
+    name: TrackerName = TrackerName.mlflow
+    uri: Optional[str] = None  # MLflow tracking URI; None: $MLFLOW_TRACKING_URI, else sqlite:///data/mlflow.db
+
+
 class FailureMode(Enum):
     stop = "stop"  # a diverged simulation or training raises (the sweep stops)
     record = "record"  # it is written to the run's failed.json and the sweep goes on
@@ -178,6 +189,7 @@ class Config:
     reference: ReferenceConf = field(default_factory=ReferenceConf)
     data: DataConf = field(default_factory=DataConf)
     eval: EvalConf = field(default_factory=EvalConf)
+    tracker: TrackerConf = field(default_factory=TrackerConf)
     viz: VizMode = VizMode.rerun
     export: ExportFormat = ExportFormat.none  # after the drape, into the run directory (python -m drapebench.export does it later)
     viz_body: Optional[str] = None  # body drawn in drape.rrd (e.g. anny_lowres: ~4x smaller file); None: the run's body
