@@ -66,3 +66,20 @@ def test_quick_runs_every_table_s_pipeline(tmp_path):
         if s.metrics:
             path = tmp_path / "out" / f"{name}.csv"
             assert read_csv(path).rows if s.group else verified_text(path), name
+
+
+def test_every_sweep_of_every_table_composes():
+    """A mistyped key in a spec's overrides fails here, not hours into `make reports` (each sweep's first run)."""
+    from hydra import compose, initialize_config_dir
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    from drapebench.schema import register
+
+    register()
+    parser = OverridesParser.create()
+    first = lambda o: f"{o.get_key_element()}={next(iter(o.sweep_string_iterator()))}" if o.is_sweep_override() else o.input_line  # noqa: E731
+    runs = {(sw.experiment, *map(first, parser.parse_overrides([o for o in sw.overrides if "glob(" not in o])))
+            for s in SPECS.values() for sw in s.sweeps}  # fmt: skip
+    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
+        for experiment, *overrides in sorted(runs):
+            compose("config", overrides=[f"experiment={experiment}", *overrides])
