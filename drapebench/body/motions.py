@@ -346,6 +346,6 @@ def ground_offset(pose: np.ndarray) -> np.ndarray:
     """
     body, sole, weights = _canonical_feet()
     with torch.no_grad():
-        transforms = body.forward(None, torch.as_tensor(pose, dtype=torch.float64), skin=False).transforms
+        transforms = body.forward(None, torch.as_tensor(pose, dtype=torch.float64, device=body.device), skin=False).transforms
         z = lbs(sole, weights, transforms)[..., 2]
     return (_soft_floor(sole[None, :, 2]) - _soft_floor(z)).numpy()

@@ -81,7 +81,7 @@ class BodySequence:
         """(T,) long: for each frame, the first frame of the run of identical frames (same pose and root
         translation) it belongs to; frame t itself where the body moved. A held pose is posed once."""
         same = ((self.poses[1:] == self.poses[:-1]).flatten(1).all(1) & (self.trans[1:] == self.trans[:-1]).all(1))
-        new_run = torch.cat([torch.ones(1, dtype=torch.bool), ~same])
+        new_run = torch.cat([torch.ones(1, dtype=torch.bool, device=same.device), ~same])
         starts = torch.nonzero(new_run).squeeze(1)
         return starts[torch.cumsum(new_run.long(), 0) - 1]
 
@@ -231,7 +231,7 @@ def make_sequence(
         **params: motion parameters (see ``motion_defaults(motion)``).
     """
     poses, trans = generate(motion, n_frames, fps, seed, transition, **params)
-    betas = torch.zeros(10) if betas is None else torch.as_tensor(betas, dtype=torch.float32)
+    betas = torch.zeros(10, device="cpu") if betas is None else torch.as_tensor(betas, dtype=torch.float32, device="cpu")  # a sequence is a CPU record
     return BodySequence(
         name=name or f"{motion}_s{seed}", motion=motion, betas=betas, poses=torch.from_numpy(poses),
         trans=torch.from_numpy(trans), fps=fps, seed=seed, split=split, n_transition=transition, params=dict(params),

@@ -65,7 +65,7 @@ ARM_PARTS = ("collar", "shoulder", "elbow", "wrist")
 def _landmarks(body, betas: torch.Tensor) -> tuple[np.ndarray, np.ndarray, dict]:
     with torch.no_grad():
         v, j = body.shaped(betas[None, : body.n_betas])
-    v, j = v[0].double().numpy(), j[0].double().numpy()
+    v, j = v[0].double().cpu().numpy(), j[0].double().cpu().numpy()  # a garment is built on the CPU, whatever the body's device
     return v, j, {n: j[i] for i, n in enumerate(body.joint_names)}
 
 
@@ -99,8 +99,8 @@ def _arm_weight(P, body_v, weights, joint_names, side, k=8, sigma=0.02):
 
 def _build(kind, body, betas, p, seed):
     body_v, _, J = _landmarks(body, betas)
-    faces = body.faces.numpy()
-    dominant = body.weights.numpy().argmax(1)
+    faces = body.faces.cpu().numpy()
+    dominant = body.weights.cpu().numpy().argmax(1)
     names = body.joint_names
     h = float(np.clip(p["resolution"] / 2.5, 0.004, 0.008))
     grid, sdf = signed_distance_grid(body_v, faces, h)
@@ -127,7 +127,7 @@ def _build(kind, body, betas, p, seed):
         n = np.array([0.0, 0.35, 1.0]) / np.linalg.norm([0.0, 0.35, 1.0])
         cuts.append((V - (J["neck"] - [0, 0, p["neck_drop"]])) @ n)  # keep below the (front-lowered) neck plane
         for side in ("left", "right"):
-            cuts.append(_arm_cut(V, _arm_weight(V, body_v, body.weights.numpy(), names, side), J, side, p["sleeve"]))
+            cuts.append(_arm_cut(V, _arm_weight(V, body_v, body.weights.cpu().numpy(), names, side), J, side, p["sleeve"]))
     if kind in TOPS:
         cuts.append(_lerp(z("spine1"), hip_z, p["length"]) - V[:, 2])
         seed_joint = "spine2"
@@ -210,7 +210,7 @@ def make_garment(kind: str, body, betas=None, seed: int = 0, name: str | None = 
 
     def build() -> dict:
         V, F, body_v, J, hip_z, ankle_z = _build(kind, body, betas_t, p, seed)
-        report = validate_garment(V, F, body_v, body.faces.numpy(), target_edge=p["resolution"],
+        report = validate_garment(V, F, body_v, body.faces.cpu().numpy(), target_edge=p["resolution"],
                                   expected_loops=EXPECTED_LOOPS[kind], sections=_sections(kind, V, hip_z, ankle_z, p["length"]))  # fmt: skip
         if not report.ok:
             raise ValueError(f"{kind} on {body.name} (betas {betas_t[:4].tolist()}, params {p}) failed validation:\n{report}")
@@ -218,8 +218,8 @@ def make_garment(kind: str, body, betas=None, seed: int = 0, name: str | None = 
 
     rec = GARMENTS.get_or_build(path, build, _write_pickle, _read_pickle, enabled=cache)
     return Garment(
-        name=name or kind, kind=kind, vertices=torch.as_tensor(rec["V"]), faces=torch.as_tensor(rec["F"]),
-        pins=torch.as_tensor(rec["pins"], dtype=torch.long), topology=get_topology(rec["V"], rec["F"]),
+        name=name or kind, kind=kind, vertices=torch.as_tensor(rec["V"], device="cpu"), faces=torch.as_tensor(rec["F"], device="cpu"),
+        pins=torch.as_tensor(rec["pins"], dtype=torch.long, device="cpu"), topology=get_topology(rec["V"], rec["F"]),
         params={**p, "seed": seed, **{f"stat_{k}": v for k, v in rec["stats"].items()}}, betas=betas_t, body_name=body.name,
     )  # fmt: skip
 

@@ -21,8 +21,9 @@ def auto_pins(template: torch.Tensor, canonical_body: torch.Tensor, band: float 
     closest to the canonical body vertices (Vb, 3) m."""
     z = template[:, 2]
     top = torch.nonzero(z >= z.max() - band).squeeze(1)
-    d, _ = cKDTree(canonical_body.detach().double().numpy()).query(template[top].detach().double().numpy(), workers=1)
-    d = torch.as_tensor(d)
+    # scipy's k-d tree runs on the CPU: the vertices go there once, the distances come back to the template's device
+    d, _ = cKDTree(canonical_body.detach().cpu().double().numpy()).query(template[top].detach().cpu().double().numpy(), workers=1)
+    d = torch.as_tensor(d, device=template.device)
     keep = d <= torch.quantile(d, share)
     return top[keep]
 

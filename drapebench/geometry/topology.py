@@ -249,17 +249,17 @@ def build_topology_arrays(vertices: np.ndarray, faces: np.ndarray, uv: np.ndarra
 
 def _from_arrays(arr: dict, key: str, dtype: torch.dtype) -> Topology:
     V = arr["vertex_areas"].shape[0]
-    t = lambda k: torch.as_tensor(arr[k], dtype=dtype)  # noqa: E731
-    i = lambda k: torch.as_tensor(arr[k], dtype=torch.long)  # noqa: E731
+    t = lambda k: torch.as_tensor(arr[k], dtype=dtype, device="cpu")  # noqa: E731  (built on the CPU, then moved: get_topology)
+    i = lambda k: torch.as_tensor(arr[k], dtype=torch.long, device="cpu")  # noqa: E731
     lap = torch.sparse_coo_tensor(
-        torch.as_tensor(np.stack([arr["lap_row"], arr["lap_col"]]), dtype=torch.long), t("lap_val"), (V, V), check_invariants=True
+        torch.as_tensor(np.stack([arr["lap_row"], arr["lap_col"]]), dtype=torch.long, device="cpu"), t("lap_val"), (V, V), check_invariants=True
     ).coalesce()
     return Topology(
         faces=i("faces"), edges=i("edges"), rest_edge_lengths=t("rest_edge_lengths"), hinge_edges=i("hinge_edges"),
         hinge_faces=i("hinge_faces"), hinge_opposite=i("hinge_opposite"), rest_dihedral=t("rest_dihedral"),
         hinge_rest_lengths=t("hinge_rest_lengths"), face_areas=t("face_areas"), rest_inv=t("rest_inv"), vertex_areas=t("vertex_areas"), ring_ptr=i("ring_ptr"),
         ring_idx=i("ring_idx"), rest_ring_eigvals=t("rest_ring_eigvals"), laplacian=lap,
-        boundary_loops=tuple(torch.as_tensor(b, dtype=torch.long) for b in arr["boundary_loops"]), key=key,
+        boundary_loops=tuple(torch.as_tensor(b, dtype=torch.long, device="cpu") for b in arr["boundary_loops"]), key=key,
         uv_rest=bool(arr["uv_rest"]),
     )  # fmt: skip
 

@@ -122,6 +122,7 @@ def train(objective: Objective, cfg: Mapping[str, Any] | TrainConf | None, log_d
     opt = torch.optim.Adam([{"params": g["params"], "factor": g["lr_factor"], "eps": g.get("eps", 1e-8)} for g in ob.param_groups], lr=cfg.lr)
     named = [(g["name"], g["params"]) for g in ob.param_groups if "name" in g]
     params = [p for g in opt.param_groups for p in g["params"]]
+    device = params[0].device  # the run's device: the objective's tensors live there
     path = Path(checkpoint_dir or cache_dir("checkpoints")) / f"{ob.name}_partial_{ob.key}.pt"
     rng = np.random.default_rng(cfg.seed)
     step, history, evaluations, t_prev, best_loss, best, resumed = 0, [], [], 0.0, math.inf, None, None
@@ -131,14 +132,17 @@ def train(objective: Objective, cfg: Mapping[str, Any] | TrainConf | None, log_d
         log.info("%s: not resuming from %s; training starts at step 0", ob.name, path)
     if state is None:
         order = rng.permutation(ob.n_items)  # one draw more than used: the seeds keep their shuffles of earlier versions
-    else:
+    else:  # the state is read onto the CPU: tensors go back to their parameters' device
         with torch.no_grad():
-            torch._foreach_copy_(params, state["params"])
-        opt.load_state_dict(state["opt"])
+            for p, saved in zip(params, state["params"]):
+                p.copy_(saved)
+        opt.load_state_dict(state["opt"])  # moves its state to each parameter's device
         step, history, t_prev, rng, order = state["step"], state["history"], state["train_s"], state["rng"], state["order"]
         evaluations = state.get("evaluations", [])
         torch.set_rng_state(state["torch_rng"])
-        ema, best_loss, best = state["ema"], state["best_loss"], state["best"]
+        if state.get("cuda_rng") is not None and device.type == "cuda":
+            torch.cuda.set_rng_state(state["cuda_rng"], device)
+        ema, best_loss, best = (_on(state["ema"], params), state["best_loss"], _on(state["best"], params))
         resumed = str(path)
         log.info("%s: resuming from step %d of %d (%s)", ob.name, step, total, path)
         if state.get("commit") != git_commit():  # the key holds the configuration, not the code
@@ -196,6 +200,7 @@ def train(objective: Objective, cfg: Mapping[str, Any] | TrainConf | None, log_d
             since_ckpt = []
             save_state(path, {"key": ob.key, "commit": git_commit(), "step": step, "history": history, "train_s": t_prev + elapsed, "params": params,
                               "opt": opt.state_dict(), "rng": rng, "torch_rng": torch.get_rng_state(), "order": order,
+                              "cuda_rng": torch.cuda.get_rng_state(device) if device.type == "cuda" else None,
                               "ema": ema, "best_loss": best_loss, "best": best, "evaluations": evaluations})  # fmt: skip
             if log_dir is not None:
                 _write_logs(Path(log_dir), history, evaluations)
@@ -214,6 +219,11 @@ def train(objective: Objective, cfg: Mapping[str, Any] | TrainConf | None, log_d
         _write_logs(Path(log_dir), history, evaluations)
     remove_state(path)
     return TrainResult(t_prev + time.perf_counter() - t0, step, history, stopped, resumed, evaluations)
+
+
+def _on(saved: list[torch.Tensor] | None, params: list[torch.Tensor]) -> list[torch.Tensor] | None:
+    """Saved copies of ``params`` (read onto the CPU) on their parameters' devices; None stays None."""
+    return None if saved is None else [t.to(p.device) for t, p in zip(saved, params)]
 
 
 def _grad_norm(params: list[torch.Tensor]) -> float:

@@ -43,6 +43,10 @@ class Relaxation:
     loss_start: np.ndarray
     loss_end: np.ndarray
 
+    def to(self, device) -> Relaxation:
+        """This relaxation with its grid and moves on ``device`` (a cached one is read onto the CPU)."""
+        return Relaxation(self.grid.to(device), self.d.to(device), self.loss_start, self.loss_end)
+
     def at(self, b: torch.Tensor) -> torch.Tensor:
         """(B, V, 3) m the relaxation for shape offsets b (B, S) from the garment's betas: multilinear in the first K
         components between the grid points, clamped to the grid's range; the other components do not enter."""
@@ -51,10 +55,10 @@ class Relaxation:
         x = b[:, :K].to(g.dtype).clamp(g[0], g[-1])
         cell = (torch.searchsorted(g, x.contiguous(), right=True) - 1).clamp(0, G - 2)  # (B, K) lower grid index
         t = (x - g[cell]) / (g[cell + 1] - g[cell])  # (B, K) position in the cell, 0..1
-        out = torch.zeros(len(b), *self.d.shape[1:], dtype=self.d.dtype)
+        out = torch.zeros(len(b), *self.d.shape[1:], dtype=self.d.dtype, device=self.d.device)
         for corner in itertools.product((0, 1), repeat=K):
-            c = torch.tensor(corner)
-            index = ((cell + c) * G ** torch.arange(K - 1, -1, -1)).sum(-1)  # (B,) flat grid index
+            c = torch.tensor(corner, device=cell.device)
+            index = ((cell + c) * G ** torch.arange(K - 1, -1, -1, device=cell.device)).sum(-1)  # (B,) flat grid index
             weight = torch.where(c.bool(), t, 1 - t).prod(-1)  # (B,)
             out = out + weight[:, None, None] * self.d[index]
         return out
@@ -68,10 +72,11 @@ def relax_at(m, b: torch.Tensor, iterations: int) -> tuple[torch.Tensor, float, 
     body, W = m.body, m.p["train"]["window"]
     betas = (m.garment_betas + b)[None]
     with torch.no_grad():  # solved in float64 whatever the body's dtype: float32 and float64 runs share one relaxation
-        out = body.forward(betas, torch.zeros(1, body.n_joints, 3, dtype=body.dtype), torch.zeros(1, 3, dtype=body.dtype))
+        out = body.forward(betas, torch.zeros(1, body.n_joints, 3, dtype=body.dtype, device=body.device),
+                           torch.zeros(1, 3, dtype=body.dtype, device=body.device))
         bv = out.vertices.double().expand(W, -1, -1)
         bn = vertex_normals(out.vertices, body.faces).double().expand(W, -1, -1)
-        start = m._canonical(torch.zeros(1, 1, 3 * len(m.template), dtype=body.dtype), betas, relaxed=False)[0, 0].double()  # rest pose: canonical = world
+        start = m._canonical(torch.zeros(1, 1, 3 * len(m.template), dtype=body.dtype, device=body.device), betas, relaxed=False)[0, 0].double()  # rest pose: canonical = world
     epoch = m.p["train"]["kext_ramp_epochs"]
     inext = m.p["relax_inextensibility_weight"]
     p = {**m.p, "collision_eps": m.p["relax_clearance"], "inextensibility_weight": m.p["inextensibility_weight"] if inext is None else inext}
@@ -103,12 +108,12 @@ def relaxation(m) -> Relaxation:
         points = list(itertools.product(grid, repeat=K))
         solves = []
         for n, point in enumerate(points):
-            b = torch.zeros(m.body.n_betas, dtype=m.body.dtype)
-            b[:K] = torch.tensor(point, dtype=m.body.dtype)
+            b = torch.zeros(m.body.n_betas, dtype=m.body.dtype, device=m.body.device)
+            b[:K] = torch.tensor(point, dtype=m.body.dtype, device=m.body.device)
             solves.append(relax_at(m, b, int(p["relax_iterations"])))
             log.info("gaps: canonical garment relaxed at body shape %d of %d (offset %s): loss %.4g -> %.4g, %.0f s", n + 1,
                      len(points), list(point), solves[-1][1], solves[-1][2], time.perf_counter() - t0)  # fmt: skip
-        return Relaxation(torch.tensor(grid), torch.stack([d for d, _, _ in solves]), np.array([s[1] for s in solves]),
+        return Relaxation(torch.tensor(grid, device="cpu"), torch.stack([d for d, _, _ in solves]).cpu(), np.array([s[1] for s in solves]),
                           np.array([s[2] for s in solves]))  # fmt: skip
 
     def write(rel: Relaxation, tmp) -> None:

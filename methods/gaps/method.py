@@ -29,15 +29,15 @@ from methods.gaps.skinning import rbf_shapedirs, rbf_weights, smoothed_weights
 
 
 def root_velocity(seq) -> torch.Tensor:
-    """(T, 3) root translation velocity of a sequence in m/s (backward difference; 0 at the first frame)."""
-    return torch.cat([torch.zeros(1, 3, dtype=seq.trans.dtype), (seq.trans[1:] - seq.trans[:-1]) * seq.fps])
+    """(T, 3) root translation velocity of a sequence in m/s (backward difference; 0 at the first frame), on the
+    device of ``seq.trans``."""
+    return torch.cat([torch.zeros(1, 3, dtype=seq.trans.dtype, device=seq.trans.device), (seq.trans[1:] - seq.trans[:-1]) * seq.fps])
 
 
 class GAPS(DrapingMethod):
     """GAPS and its ablations (see the module docstring for every reading of the paper)."""
 
     name = "gaps"
-    devices = ("cpu",)  # its network, skinning weights and training inputs are built on the CPU
     displaced_from = ("raw",)  # under collision_postprocess: the push-out's move
     generic = False
     needs_reference = False
@@ -52,12 +52,13 @@ class GAPS(DrapingMethod):
 
     # ------------------------------------------------------------------ garment set-up
     def _setup(self, garment) -> None:
-        """Per-garment constants: template, skinning weights, bending blend, nearest body vertices, culling."""
+        """Per-garment constants on the body's device: template, skinning weights, bending blend, nearest body
+        vertices, culling (the garment, a CPU record, is moved once)."""
         body, p = self.body, self.p
         with torch.no_grad():
             rest_body = body.shaped(garment.betas[None, : body.n_betas])[0][0]
-        self.template = garment.vertices.to(body.dtype)
-        self.topology = garment.topology
+        self.template = garment.vertices.to(body.device, body.dtype)
+        self.topology = garment.topology.to(device=body.device)
         self.nn_rest = nearest_body_vertices(self.template, body, garment.betas)
         self.shape_dirs = self._shape_dirs(rest_body)
         if p["skinning"] == "rbf":
@@ -72,14 +73,14 @@ class GAPS(DrapingMethod):
         edge_d = dist[garment.topology.hinge_edges].mean(-1)
         self.bend_blend = (edge_d - edge_d.min()) / (edge_d.max() - edge_d.min()).clamp_min(1e-9)
         self.candidates = culled_body_vertices(self.template, rest_body, body.weights)
-        self.garment_betas = garment.betas[: body.n_betas].to(body.dtype)
+        self.garment_betas = garment.betas[: body.n_betas].to(body.device, body.dtype)
         self.n_in = body.n_betas + 3 * body.n_joints + 3
         if self.net is None:
-            self.net = GapsNet(self.n_in, 3 * garment.n_vertices, p["hidden"], p["layers"], p["zero_init_output"]).to(body.dtype)
-            self.input_mean = torch.zeros(self.n_in)
-            self.input_std = torch.ones(self.n_in)
+            self.net = GapsNet(self.n_in, 3 * garment.n_vertices, p["hidden"], p["layers"], p["zero_init_output"]).to(body.device, body.dtype)
+            self.input_mean = torch.zeros(self.n_in, device=body.device)
+            self.input_std = torch.ones(self.n_in, device=body.device)
         self.garment_key = content_hash(garment.vertices, garment.faces)
-        self.relaxed = relaxation(self) if p["canonical"] == "relaxed" else None
+        self.relaxed = relaxation(self).to(body.device) if p["canonical"] == "relaxed" else None
 
     # ------------------------------------------------------------------ forward model
     def _inputs(self, betas: torch.Tensor, poses: torch.Tensor, vel: torch.Tensor) -> torch.Tensor:
@@ -125,9 +126,10 @@ class GAPS(DrapingMethod):
         seqs = self._training_sequences(data.train_sequences)
         W = tp["window"]
         self._windows = [(i, t) for i, s in enumerate(seqs) for t in range(1, s.n_frames - W + 1)]
-        self._poses = [s.poses.to(self.body.dtype) for s in seqs]
-        self._vels = [root_velocity(s).to(self.body.dtype) for s in seqs]
-        self._trans = [s.trans.to(self.body.dtype) for s in seqs]
+        dev, dtype = self.body.device, self.body.dtype  # the training sequences, read on the CPU, moved to the device once
+        self._poses = [s.poses.to(dev, dtype) for s in seqs]
+        self._vels = [root_velocity(s).to(dev, dtype) for s in seqs]
+        self._trans = [s.trans.to(dev, dtype) for s in seqs]
         if self.p["normalize_inputs"]:
             allx = torch.cat([torch.cat([p.reshape(len(p), -1), v], -1) for p, v in zip(self._poses, self._vels)])
             self.input_mean[self.body.n_betas :] = allx.mean(0)
@@ -173,10 +175,10 @@ class GAPS(DrapingMethod):
         body, p, W = self.body, self.p, self.p["train"]["window"]
         batch = [self._windows[j] for j in items]
         B = len(batch)
-        betas = torch.zeros(B, body.n_betas, dtype=body.dtype)
+        betas = torch.zeros(B, body.n_betas, dtype=body.dtype, device=body.device)
         if not p["single_shape"]:
             r = np.asarray(p["train"]["beta_range"], dtype=np.float64)
-            betas[:, : len(r)] = torch.as_tensor(at.rng.uniform(-r, r, (B, len(r))), dtype=body.dtype)
+            betas[:, : len(r)] = torch.as_tensor(at.rng.uniform(-r, r, (B, len(r))), dtype=body.dtype, device=body.device)
         pose = torch.stack([self._poses[i][t : t + W] for i, t in batch])
         vel = torch.stack([self._vels[i][t : t + W] for i, t in batch])
         tr = torch.stack([self._trans[i][t : t + W] for i, t in batch])
@@ -189,7 +191,7 @@ class GAPS(DrapingMethod):
         """The drape of a batch by the network (GRU state drawn from N(0, hidden_init_std^2)) and its loss terms."""
         betas, pose, vel, tr, out, normals = batch
         p, B, W = self.p, len(betas), self.p["train"]["window"]
-        h0 = torch.randn(p["layers"], B, p["hidden"], dtype=self.body.dtype) * p["train"]["hidden_init_std"]
+        h0 = torch.randn(p["layers"], B, p["hidden"], dtype=self.body.dtype, device=self.body.device) * p["train"]["hidden_init_std"]
         delta, _ = self.net(self._inputs(betas, pose, vel), h0)
         xc = self._canonical(delta, betas).reshape(B * W, -1, 3)
         x = skin_then_translate(xc, self.weights, out.transforms, tr.reshape(B * W, 3))  # (B*W, V, 3)
@@ -252,7 +254,7 @@ class GAPS(DrapingMethod):
             t2 = time.perf_counter()
             xc = self._canonical(delta, betas)[0]
             del delta  # (T, 3V): freed before skinning, which holds another (T, V, 3)
-            x = skin_then_translate(xc, self.weights, transforms, seq.trans.to(xc.dtype))
+            x = skin_then_translate(xc, self.weights, transforms, seq.trans.to(xc.device, xc.dtype))
             del xc
         t3 = time.perf_counter()
         ms = lambda a, b: (b - a) * 1e3  # noqa: E731
@@ -282,15 +284,16 @@ class GAPS(DrapingMethod):
 
     def _sequence_betas(self, seq) -> torch.Tensor:
         """(1, S) the sequence's shape coefficients, zero-padded to the body's S (a sequence may give fewer)."""
-        betas = torch.zeros(1, self.body.n_betas, dtype=self.body.dtype)
+        betas = torch.zeros(1, self.body.n_betas, dtype=self.body.dtype, device=self.body.device)
         given = seq.betas[: self.body.n_betas]
-        betas[0, : len(given)] = given.to(self.body.dtype)
+        betas[0, : len(given)] = given.to(self.body.device, self.body.dtype)
         return betas
 
     def sequence_inputs(self, seq) -> torch.Tensor:
         """(1, T, S + 3J + 3): the network's input on ``seq`` (its betas, poses and root velocity)."""
-        vel = root_velocity(seq)[None].to(self.body.dtype)
-        return self._inputs(self._sequence_betas(seq), seq.poses[None].to(self.body.dtype), vel)
+        dev, dtype = self.body.device, self.body.dtype
+        vel = root_velocity(seq)[None].to(dev, dtype)
+        return self._inputs(self._sequence_betas(seq), seq.poses[None].to(dev, dtype), vel)
 
     def displacements(self, seq) -> torch.Tensor:
         """(1, T, 3V) m: the network's canonical displacements on ``seq`` (GRU state zero), no gradient."""
@@ -300,19 +303,19 @@ class GAPS(DrapingMethod):
     def forward_sequence(self, garment, seq, h0=None):
         """Differentiable drape (T, V, 3) and final hidden state, for tests and fine-tuning."""
         betas = self._sequence_betas(seq)
-        vel = root_velocity(seq)[None].to(self.body.dtype)
-        delta, h = self.net(self._inputs(betas, seq.poses[None].to(self.body.dtype), vel), h0)
+        delta, h = self.net(self.sequence_inputs(seq), h0)
         return self.skinned(delta, betas, seq), h
 
     def untrained_drape(self, seq) -> torch.Tensor:
         """(T, V, 3) m: the skinning alone (network output zero, where training starts) on ``seq``; needs the
         garment's constants (:meth:`_setup` or a :meth:`drape` of the garment)."""
         with torch.no_grad():
-            return self.skinned(torch.zeros(1, seq.n_frames, 3 * self.template.shape[0], dtype=self.body.dtype), self._sequence_betas(seq), seq)
+            zero = torch.zeros(1, seq.n_frames, 3 * self.template.shape[0], dtype=self.body.dtype, device=self.body.device)
+            return self.skinned(zero, self._sequence_betas(seq), seq)
 
     def skinned(self, delta: torch.Tensor, betas: torch.Tensor, seq) -> torch.Tensor:
         """The drape (T, V, 3) m of canonical displacements delta (1, T, 3V) m on ``seq`` with shape betas (1, S)."""
-        return skin_then_translate(self._canonical(delta, betas)[0], self.weights, seq.transforms(self.body), seq.trans.to(self.body.dtype))
+        return skin_then_translate(self._canonical(delta, betas)[0], self.weights, seq.transforms(self.body), seq.trans.to(self.body.device, self.body.dtype))
 
     # ------------------------------------------------------------------ state
     def state_dict(self) -> dict:
@@ -338,7 +341,8 @@ class GAPS(DrapingMethod):
             self.net = GapsNet(state["n_in"], state["n_out"], self.p["hidden"], self.p["layers"], self.p["zero_init_output"])
         self.net.load_state_dict(state["net"])
         dtype = state["weights"].dtype if self.body is None else self.body.dtype  # a float32 model runs in a float64 scene
-        self.net.to(dtype)
-        self.weights = torch.nn.Parameter(state["weights"].clone().to(dtype), requires_grad=self.p["trainable_weights"])
-        self.input_mean, self.input_std = state["input_mean"], state["input_std"]
+        device = state["weights"].device if self.body is None else self.body.device  # a checkpoint is read onto the CPU
+        self.net.to(device, dtype)
+        self.weights = torch.nn.Parameter(state["weights"].clone().to(device, dtype), requires_grad=self.p["trainable_weights"])
+        self.input_mean, self.input_std = state["input_mean"].to(device), state["input_std"].to(device)
         self.garment_key = state["garment_key"]

@@ -61,11 +61,15 @@ class Binding:
     u: torch.Tensor
     pin: torch.Tensor
 
+    def to(self, device) -> Binding:
+        """This binding on ``device``."""
+        return Binding(self.nu.to(device), self.u.to(device), self.pin.to(device))
+
 
 def bind(template: torch.Tensor, canonical_body: torch.Tensor, pins: torch.Tensor) -> Binding:
     """Alg. 2 lines 2 and 4 for a template (V, 3) on the canonical body vertices (Vb, 3)."""
     nu = nearest_indices(template[None], canonical_body[None])[0]
-    pin = torch.zeros(len(template), dtype=torch.bool)
+    pin = torch.zeros(len(template), dtype=torch.bool, device=template.device)
     pin[pins.long()] = True
     return Binding(nu, template - canonical_body[nu], pin)
 
@@ -76,7 +80,7 @@ def neighbour_mean(values: torch.Tensor, edges: torch.Tensor, mask: torch.Tensor
     a, b = edges[:, 0], edges[:, 1]
     keep = (mask[a] & mask[b]).to(values.dtype)[:, None]
     total = values.clone().index_add_(0, a, values[b] * keep).index_add_(0, b, values[a] * keep)
-    count = torch.ones(len(values), dtype=values.dtype).index_add_(0, a, keep[:, 0]).index_add_(0, b, keep[:, 0])
+    count = torch.ones(len(values), dtype=values.dtype, device=values.device).index_add_(0, a, keep[:, 0]).index_add_(0, b, keep[:, 0])
     return torch.where(mask[:, None], total / count[:, None], values)
 
 
@@ -133,7 +137,7 @@ def motion_aware_arap(template, faces, handles, targets, target_body, target_nor
         zeta, n = nn.distance[0], nn.normal[0]
         push = torch.zeros_like(x)
         push[free] = torch.where((zeta <= 0)[:, None], -zeta[:, None] * n, torch.zeros_like(n))
-        inside = torch.zeros(len(x), dtype=torch.bool)
+        inside = torch.zeros(len(x), dtype=torch.bool, device=x.device)
         inside[torch.nonzero(free).squeeze(1)[zeta <= 0]] = True
         for _ in range(cfg.push_smoothing):  # free neighbours of a pushed vertex follow part of its push
             spread = neighbour_mean(push, edges, free)
@@ -149,7 +153,7 @@ def front_aligned(body, betas: torch.Tensor, poses: torch.Tensor):
     aligned[:, 0] = 0.0
     betas = betas.expand(len(poses), -1) if betas.dim() == 1 else betas
     with torch.no_grad():
-        out = body.forward(betas, aligned, torch.zeros(len(poses), 3, dtype=poses.dtype))
+        out = body.forward(betas, aligned, torch.zeros(len(poses), 3, dtype=poses.dtype, device=poses.device))
     return out.vertices, out.transforms
 
 

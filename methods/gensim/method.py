@@ -50,19 +50,26 @@ class GarmentGraph:
     betas: torch.Tensor
     u_surface: torch.Tensor
 
+    def to(self, device) -> GarmentGraph:
+        """This graph on ``device``."""
+        move = {k: v.to(device) for k, v in vars(self).items() if isinstance(v, torch.Tensor)}
+        return GarmentGraph(**move, topology=self.topology.to(device=device), binding=self.binding.to(device))
+
 
 def garment_graph(garment, body, material) -> GarmentGraph:
-    """The :class:`GarmentGraph` of a garment on its canonical body (the rest body of ``garment.betas``)."""
-    pins = garment_pins(garment, body)
+    """The :class:`GarmentGraph` of a garment on its canonical body (the rest body of ``garment.betas``), on the
+    body's device (the garment, a CPU record, is moved once)."""
+    pins = garment_pins(garment, body).to(body.device)
     with torch.no_grad():
-        canonical = body.shaped(garment.betas[None, : body.n_betas].to(body.dtype))[0][0]
-    template = garment.vertices.to(body.dtype)
-    e = garment.topology.edges
+        canonical = body.shaped(garment.betas[None, : body.n_betas].to(body.device, body.dtype))[0][0]
+    template = garment.vertices.to(body.device, body.dtype)
+    topology = garment.topology.to(device=body.device)
+    e = topology.edges
     senders, receivers = torch.cat([e[:, 0], e[:, 1]]), torch.cat([e[:, 1], e[:, 0]])
     b = bind(template, canonical, pins)
     surface = closest_body_point(template[None], canonical[None], body.faces, outer_faces=body.outer_faces).point[0]
-    return GarmentGraph(template, garment.topology, pins, b.pin, senders, receivers, template[receivers] - template[senders],
-                        garment.topology.vertex_masses(material).to(body.dtype) * 1e3, b, garment.betas.to(body.dtype),
+    return GarmentGraph(template, topology, pins, b.pin, senders, receivers, template[receivers] - template[senders],
+                        topology.vertex_masses(material).to(body.dtype) * 1e3, b, garment.betas.to(body.device, body.dtype),
                         template - surface)  # fmt: skip
 
 
@@ -72,14 +79,13 @@ def hem_vertices(garment) -> torch.Tensor:
     if not loops:
         raise ValueError(f"gensim: garment {garment.name!r} has no boundary loop, so no hem to measure")
     z = garment.vertices[:, 2]
-    return torch.as_tensor(min(loops, key=lambda loop: z[torch.as_tensor(loop)].mean().item())).long()
+    return torch.as_tensor(min(loops, key=lambda loop: z[torch.as_tensor(loop, device=z.device)].mean().item()), device=z.device).long()
 
 
 class GenSim(DrapingMethod):
     """Motion-aware ARAP + PEN (see the module docstring)."""
 
     name = "gensim"
-    devices = ("cpu",)  # PEN, the garment graphs and the ARAP stage (libigl) are built on the CPU
     displaced_from = ("arap",)  # the recording colours PEN's displacement (Fig. 11)
     generic = True
     needs_reference = False
@@ -96,26 +102,29 @@ class GenSim(DrapingMethod):
     def _new_net(self) -> PEN:
         p = self.p
         return PEN(p["latent"], p["geometry"], p["steps"], p["direction"], p["magnitude_scale"], p["decoder"], p["decoder_init"],
-                   p["input_norm"], p["normal_part"], PEN.N_NODE + int(p["distance_input"])).to(self.body.dtype)  # fmt: skip
+                   p["input_norm"], p["normal_part"], PEN.N_NODE + int(p["distance_input"])).to(self.body.device, self.body.dtype)  # fmt: skip
 
     def arap_stage(self, graph: GarmentGraph, betas: torch.Tensor, poses: torch.Tensor):
         """ARAP-deformed garment (T, V, 3), handle masks (T, V) bool and body motion d (T, V, 3), all in the
         front-aligned frame, for a body shape ``betas`` (S,) and poses (T, J, 3); plus the aligned bodies
-        (T, Vb, 3), their normals and skinning transforms (T, J, 4, 4)."""
+        (T, Vb, 3), their normals and skinning transforms (T, J, 4, 4); all on the body's device."""
         body = self.body
-        verts, transforms = front_aligned(body, betas, poses.to(body.dtype))
+        verts, transforms = front_aligned(body, betas.to(body.device), poses.to(body.device, body.dtype))
         normals = vertex_normals(verts, body.faces)
         with torch.no_grad():
             canonical = body.shaped(graph.betas[None, : body.n_betas])[0][0]
             pins_at = skinned_template(graph.template, graph.binding, body, graph.betas, betas, transforms)
+        # The ARAP solve (libigl) and its k-d tree run on the CPU: the frames' inputs go there once, the results come back once.
+        host = graph.to("cpu")
+        canonical_h, verts_h, normals_h, pins_h = (t.cpu() for t in (canonical, verts, normals, pins_at))
         G, H, D = [], [], []
         for t in range(len(poses)):
-            handles, targets, d = handle_targets(graph.binding, graph.template, canonical, verts[t], normals[t], pins_at[t], self.arap,
-                                              graph.topology.edges)  # fmt: skip
-            G.append(motion_aware_arap(graph.template, graph.topology.faces, handles, targets, verts[t], normals[t], self.arap))
+            handles, targets, d = handle_targets(host.binding, host.template, canonical_h, verts_h[t], normals_h[t], pins_h[t], self.arap,
+                                              host.topology.edges)  # fmt: skip
+            G.append(motion_aware_arap(host.template, host.topology.faces, handles, targets, verts_h[t], normals_h[t], self.arap))
             H.append(handles)
             D.append(d)
-        return torch.stack(G), torch.stack(H), torch.stack(D), verts, normals, transforms
+        return *(torch.stack(a).to(body.device) for a in (G, H, D)), verts, normals, transforms
 
     def features(self, graph: GarmentGraph, G, d, body_vertices, body_normals):
         """PEN's inputs for ARAP results G (B, V, 3) with body motion d (B, V, 3) on front-aligned bodies (B, Vb, 3)
@@ -257,18 +266,18 @@ class GenSim(DrapingMethod):
         graphs = [garment_graph(g, body, self.material) for g in garments]
         path = FRAMES.path(tp, seed, self.p["supervised"], self.material, body_key(body), self.arap,
                            [(g.vertices, g.faces, g.pins) for g in garments], prefix="frames", suffix=".pt")  # fmt: skip
-        items = FRAMES.load(path, partial(torch.load, weights_only=False))
-        if items is not None:
-            return graphs, items
+        items = FRAMES.load(path, partial(torch.load, map_location="cpu", weights_only=False))
+        if items is not None:  # prepared (and cached) on the CPU, moved to the body's device once
+            return graphs, [tuple(v.to(body.device) if isinstance(v, torch.Tensor) else v for v in item) for item in items]
         log.info("gensim: computing the ARAP stage of %d training frames (%d garments; cached after)",
                  len(garments) * tp["sequences"] * tp["frames_per_sequence"], len(garments))  # fmt: skip
         rng = np.random.default_rng(seed)
         items = []
         plan = [(gi, k) for gi in range(len(graphs)) for k in range(tp["sequences"])]
         for gi, k in progress(plan, desc="gensim ARAP training frames", unit="seq"):
-            betas = torch.zeros(body.n_betas, dtype=body.dtype)
+            betas = torch.zeros(body.n_betas, dtype=body.dtype, device="cpu")
             n = tp["n_shape_betas"]
-            betas[:n] = torch.as_tensor(np.clip(rng.normal(0, tp["beta_std"], n), -tp["beta_clip"], tp["beta_clip"]), dtype=body.dtype)
+            betas[:n] = torch.as_tensor(np.clip(rng.normal(0, tp["beta_std"], n), -tp["beta_clip"], tp["beta_clip"]), dtype=body.dtype, device="cpu")
             motion = tp["motions"][(gi * tp["sequences"] + k) % len(tp["motions"])]  # the list cycles over every garment's sequences
             seq = make_sequence(motion, tp["n_frames"], seed=int(rng.integers(2**31)), betas=betas.tolist())
             frames = np.linspace(seq.n_transition, seq.n_frames - 1, tp["frames_per_sequence"]).round().astype(int)
@@ -277,11 +286,11 @@ class GenSim(DrapingMethod):
             if refs is None:
                 continue
             G, _, D, *_ = self.arap_stage(graphs[gi], betas, poses)
-            items += [(gi, betas, poses[j : j + 1], G[j], D[j], refs[j]) for j in range(len(frames))]
+            items += [(gi, betas, poses[j : j + 1], G[j].cpu(), D[j].cpu(), refs[j]) for j in range(len(frames))]
         if not items:
             raise RuntimeError("gensim: no training frames (every reference simulation failed); see the warnings above")
-        FRAMES.store(path, lambda tmp: torch.save(items, tmp))
-        return graphs, items
+        FRAMES.store(path, lambda tmp: torch.save(items, tmp))  # on the CPU: a cache any device reads
+        return graphs, [tuple(v.to(body.device) if isinstance(v, torch.Tensor) else v for v in item) for item in items]
 
     def _reference_frames(self, garment, seq, frames):
         """Reference drapes (F, V, 3) of ``frames`` of ``seq`` in the front-aligned frame (the supervised
@@ -294,8 +303,8 @@ class GenSim(DrapingMethod):
         except DrapeFailed as err:
             log.warning("gensim: no reference for %s on %s, sequence skipped: %s", garment.name, seq.name, err)
             return None
-        root = seq.transforms(self.body)[frames, 0].to(x.dtype)  # aligned -> world: x = R y + t
-        return (x - root[:, None, :3, 3]) @ root[:, :3, :3]
+        root = seq.transforms(self.body)[frames, 0].to(x.device, x.dtype)  # aligned -> world: x = R y + t
+        return ((x - root[:, None, :3, 3]) @ root[:, :3, :3]).cpu()  # a training frame, prepared on the CPU
 
     def _batch(self, items: np.ndarray, at) -> list:
         """Items grouped by garment: [(graph, G (B, V, 3), d, body (B, Vb, 3), normals, betas (B, S), reference
@@ -371,9 +380,9 @@ class GenSim(DrapingMethod):
 
     def sequence_shape(self, seq) -> torch.Tensor:
         """(S,) the body shape of ``seq`` in the body's betas (zeros where the sequence gives fewer)."""
-        betas = torch.zeros(self.body.n_betas, dtype=self.body.dtype)
+        betas = torch.zeros(self.body.n_betas, dtype=self.body.dtype, device=self.body.device)
         given = seq.betas[: self.body.n_betas]
-        betas[: len(given)] = given.to(self.body.dtype)
+        betas[: len(given)] = given.to(self.body.device, self.body.dtype)
         return betas
 
     def to_world(self, seq, *drapes: torch.Tensor) -> list[torch.Tensor]:
@@ -394,7 +403,7 @@ class GenSim(DrapingMethod):
         moved = delta.norm(dim=-1).flatten()
         stats = {"pen_mm": moved.mean().item(), "pen_p99_mm": moved.quantile(0.99).item(), "pen_max_mm": moved.max().item()}
         if garment is not None:
-            stats["hem_drop_mm"] = -delta[:, hem_vertices(garment), 2].mean().item()
+            stats["hem_drop_mm"] = -delta[:, hem_vertices(garment).to(delta.device), 2].mean().item()
         return stats
 
     # ------------------------------------------------------------------ state

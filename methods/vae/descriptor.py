@@ -45,7 +45,7 @@ def generated_poses(motions, per_motion: int, n_frames: int, transition: int, fp
     default motion parameters, seeds from GENERATED_POSE_SEED) of each motion kind in ``motions``, N =
     len(motions) * per_motion * (transition + n_frames)."""
     poses = [generate(m, n_frames, fps, GENERATED_POSE_SEED + i, transition)[0] for m in sorted(set(motions)) for i in range(per_motion)]
-    return torch.as_tensor(np.concatenate(poses)) if poses else torch.zeros(0, 22, 3)
+    return torch.as_tensor(np.concatenate(poses), device="cpu") if poses else torch.zeros(0, 22, 3, device="cpu")
 
 
 ROOT_CHOICES = ("world", "vertical")

@@ -12,11 +12,17 @@ def collision(sdf, X: torch.Tensor, eps: float) -> torch.Tensor:
     return ((eps - sdf(X)).clamp_min(0) * 1e3).mean()
 
 
+def normal_noise(shape: tuple, like: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
+    """Standard normal draws of ``shape`` in the dtype and on the device of ``like``: drawn on the CPU by
+    ``generator`` (a CPU generator; None: torch's global one) and moved, so a seed gives the same draws on any device."""
+    return torch.randn(shape, generator=generator, dtype=like.dtype, device="cpu").to(like.device)
+
+
 def latent_samples(n: int, mu: torch.Tensor, scale, generator: torch.Generator | None = None) -> torch.Tensor:
     """``n`` latent codes (n, latent) for the self-supervised term of Eq. 16: ``scale`` "prior" draws z ~ N(0, I)
     (the paper); "codes" draws z ~ N(m, diag(s^2)) with m, s the per-dimension mean and std of the posterior
     means mu (B, latent) of a batch (detached: where the data's codes live); a number s draws z ~ N(0, s^2 I)."""
-    noise = torch.randn((n, mu.shape[-1]), generator=generator, dtype=mu.dtype)
+    noise = normal_noise((n, mu.shape[-1]), mu, generator)
     if scale == "prior":
         return noise
     if scale == "codes":
@@ -38,7 +44,7 @@ def vae_terms(vae, sdf, topology, X: torch.Tensor, p: dict, eps: float, generato
     Eq. 16, mm), KL (nats per garment, weighted ``kl`` x ``kl_factor``, the annealing ramp); a term of weight 0
     is left out."""
     mu, logvar = vae.encode(X)
-    z = mu + torch.randn(mu.shape, generator=generator, dtype=mu.dtype) * torch.exp(0.5 * logvar)
+    z = mu + normal_noise(mu.shape, mu, generator) * torch.exp(0.5 * logvar)
     Y = vae.decode(z)
     terms = {"reconstruction": ((Y - X).abs() * 1e3).sum(-1).mean()}
     if p["laplacian"]:

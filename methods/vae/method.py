@@ -43,7 +43,6 @@ class VAEModel(DrapingMethod):
     """The VAE collision model and its ablations (see the module docstring)."""
 
     name = "vae"
-    devices = ("cpu",)  # training draws its samples on the CPU; inference alone runs on cuda (benchmarks/bench_vae.py --device cuda)
     generic = False
     needs_reference = True
 
@@ -75,8 +74,8 @@ class VAEModel(DrapingMethod):
             self.sdf = fit_body_sdf(self.body, self.p["sdf"] or None).to(self.body.device)
 
     def _canonical_template(self, garment) -> torch.Tensor:
-        """The garment template (V, 3) m moved to the mean body shape (the canonical space's)."""
-        X = garment.vertices.to(self.body.dtype)
+        """The garment template (V, 3) m moved to the mean body shape (the canonical space's), on the body's device."""
+        X = garment.vertices.to(self.body.device, self.body.dtype)
         betas = self.body.full_betas(garment.betas)
         if bool((betas != 0).any()):
             with torch.no_grad():
@@ -108,7 +107,7 @@ class VAEModel(DrapingMethod):
         log_dir = train_cfg.pop("log_dir", None)
         train_cfg.pop("dataset", None)  # the VAE trains on reference drapes (the data group), not a body dataset
         self._body_fields()
-        self.topology = garment.topology
+        self.topology = garment.topology.to(device=self.body.device)
         self.template = self._canonical_template(garment)
         seqs, X = self.training_garments(garment, data)
         n_val = int(self.p["val_sequences"])
@@ -148,7 +147,7 @@ class VAEModel(DrapingMethod):
         fields = self.settings_key()
         path = PROJECTIONS.path(cfg, fields["diffused"], fields["sdf"], body_key(body), garment.vertices, garment.faces,
                                 [(s.betas, s.poses, s.trans, s.fps) for s in seqs], drapes, prefix="projection", suffix=".pt")  # fmt: skip
-        hit = PROJECTIONS.load(path, lambda p: torch.load(p, weights_only=False))
+        hit = PROJECTIONS.load(path, lambda p: torch.load(p, map_location="cpu", weights_only=False))
         if hit is None:
             hit = [None] * len(seqs)
             for T in sorted({s.n_frames for s in seqs}):
@@ -156,16 +155,16 @@ class VAEModel(DrapingMethod):
                 with torch.no_grad():
                     A = torch.stack([seqs[i].transforms(body).to(body.dtype) for i in idx])
                 betas = torch.stack([self.body.full_betas(seqs[i].betas) for i in idx])
-                frames = torch.stack([drapes[i].to(body.dtype) for i in idx])
-                p = project_sequences(self.diffused, self.sdf, garment.topology, self.template, frames, betas, A, cfg,
+                frames = torch.stack([drapes[i].to(body.device, body.dtype) for i in idx])  # reference drapes, read on the CPU
+                p = project_sequences(self.diffused, self.sdf, self.topology, self.template, frames, betas, A, cfg,
                                       desc=f"vae projection ({len(idx)} sequences)")  # fmt: skip
                 for j, i in enumerate(idx):
-                    hit[i] = Projection(p.X[j], p.residual_mm[j], p.colliding[j])
-            PROJECTIONS.store(path, lambda tmp: torch.save(hit, tmp))
+                    hit[i] = Projection(p.X[j].cpu(), p.residual_mm[j].cpu(), p.colliding[j].cpu())
+            PROJECTIONS.store(path, lambda tmp: torch.save(hit, tmp))  # on the CPU: a cache any device reads
         lengths = {p.X.shape[0] for p in hit}
         if len(lengths) > 1:
             raise ValueError(f"vae: reference sequences of different lengths {sorted(lengths)}; use one n_frames in the data preset")
-        proj = Projection(torch.stack([p.X for p in hit]), torch.stack([p.residual_mm for p in hit]), torch.stack([p.colliding for p in hit]))
+        proj = Projection(torch.stack([p.X for p in hit]).to(body.device), torch.stack([p.residual_mm for p in hit]), torch.stack([p.colliding for p in hit]))
         self.projection_stats = {"residual_mm": float(proj.residual_mm.mean()), "residual_mm_max": float(proj.residual_mm.max()),
                                  "canonical_colliding_pct": 100 * float(proj.colliding.mean())}  # fmt: skip
         log.info("vae: projected %d frames: residual %.2f mm (max %.2f), %.3f %% of vertices inside the canonical body",
@@ -199,7 +198,7 @@ class VAEModel(DrapingMethod):
 
         key = content_hash(self.p["vae"], eps, budget, X, self.template, "vae")
         objective = Objective("vae", [{"params": list(self.vae.parameters()), "lr_factor": 1.0}], len(X),
-                              lambda idx, at: X[torch.as_tensor(idx)], terms, key,
+                              lambda idx, at: X[torch.as_tensor(idx, device=X.device)], terms, key,
                               lambda: self._latent_evaluation(X, X_val))  # fmt: skip
         res = train(objective, budget, log_dir=None if log_dir is None else f"{log_dir}/vae")
         with torch.no_grad():
@@ -217,7 +216,7 @@ class VAEModel(DrapingMethod):
         with torch.no_grad():
             mu, logvar = self.vae.encode(X)
             Y = self.vae.decode(self.vae.encode(X_val)[0])
-            noise = torch.randn((256, self.vae.latent), generator=torch.Generator().manual_seed(1), dtype=X.dtype)
+            noise = losses.normal_noise((256, self.vae.latent), X, torch.Generator().manual_seed(1))
             spread = mu.mean(0) + mu.std(0) * noise
 
             def inside_pct(G):
@@ -239,14 +238,14 @@ class VAEModel(DrapingMethod):
         first = seqs[0]
         generated = generated_poses([s.motion for s in seqs], int(r["pose_sequences"]), len(first.poses) - int(first.n_transition),
                                     int(first.n_transition), float(first.fps))  # fmt: skip
-        R = pose_rotations(torch.cat([*(s.poses for s in seqs), generated]).to(self.body.dtype))
+        R = pose_rotations(torch.cat([*(s.poses for s in seqs), generated]).to(self.body.device, self.body.dtype))  # moved once
         key = content_hash(r["pose_code"], budget, R, "pose")
 
         def terms(b, at):
             return {"reconstruction": (self.pose(b) - b.flatten(-3)).square().mean()}
 
         objective = Objective("vae_pose", [{"params": list(self.pose.parameters()), "lr_factor": 1.0}], len(R),
-                              lambda idx, at: R[torch.as_tensor(idx)], terms, key)  # fmt: skip
+                              lambda idx, at: R[torch.as_tensor(idx, device=R.device)], terms, key)  # fmt: skip
         res = train(objective, budget)
         for q in self.pose.parameters():
             q.requires_grad_(False)
@@ -336,7 +335,7 @@ class VAEModel(DrapingMethod):
             if "canonical" in result.extras:
                 per_frame = inside_pct(result.extras["canonical"][int(seq.n_transition) :])
                 out = {"eps_c_canonical": float(per_frame.mean()), "eps_c_canonical_std": float(per_frame.std(unbiased=False))}
-            noise = torch.randn((256, self.vae.latent), generator=torch.Generator().manual_seed(1), dtype=self.body.dtype)
+            noise = losses.normal_noise((256, self.vae.latent), self.vae.code_mean, torch.Generator().manual_seed(1))
             codes = {"prior": noise, "prior3": 3 * noise, "codes": self.vae.code_mean + self.vae.code_std * noise}
             out.update({f"sampled_{k}_pct": float(inside_pct(self.vae.decode(z)).mean()) for k, z in codes.items()})
         return out

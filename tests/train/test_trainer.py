@@ -18,6 +18,7 @@ import torch
 from drapebench.errors import TrainingDiverged
 from drapebench.schema import TrainConf
 from drapebench.train import scheduled_lr, train, train_config
+from tests.devices import device_params
 from tests.train.toy import BUDGET, toy
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -69,14 +70,15 @@ def test_losses_csv_has_a_row_per_step_with_each_term(tmp_path):
     assert not list((tmp_path / "ckpt").glob("*.pt"))  # the resumable state is removed when training ends
 
 
-def test_an_interrupted_run_resumes_from_its_checkpoint_and_ends_where_an_uninterrupted_run_ends(tmp_path):
-    whole, params = _run(tmp_path / "a")
+@device_params
+def test_an_interrupted_run_resumes_from_its_checkpoint_and_ends_where_an_uninterrupted_run_ends(tmp_path, device):
+    whole, params = _run(tmp_path / "a", device=device)
     with pytest.raises(KeyboardInterrupt):
-        _run(tmp_path / "b", interrupt_at=7)
+        _run(tmp_path / "b", interrupt_at=7, device=device)
     assert [r["step"] for r in csv.DictReader((tmp_path / "b" / "losses.csv").open())] == ["1", "2", "3", "4", "5", "6"]
-    resumed, params_b = _run(tmp_path / "b")
+    resumed, params_b = _run(tmp_path / "b", device=device)  # the state is read onto the CPU, the run goes on on the device
     assert resumed.resumed_from is not None and resumed.history == whole.history  # RNG draws and optimizer state resumed
-    assert all(torch.equal(a, b) for a, b in zip(params, params_b))
+    assert all(p.device.type == device and torch.equal(a, b) for a, b, p in zip(params, params_b, params_b))
     other, _ = _run(tmp_path / "b", key="another run")  # a run with another key starts afresh
     assert other.resumed_from is None
 

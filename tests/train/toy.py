@@ -16,14 +16,14 @@ BUDGET = {"steps": 40, "batch_size": 4, "lr": 0.05, "lr_after": 0.01, "lr_switch
           "ema_decay": 0.9, "checkpoint_every": 3, "log_every": 1}  # fmt: skip
 
 
-def toy(nan_at=None, interrupt_at=None, sleep_s=0.0, slow_from=0, jump_at=None, key="toy"):
+def toy(nan_at=None, interrupt_at=None, sleep_s=0.0, slow_from=0, jump_at=None, key="toy", device="cpu"):
     """(Objective, [w (3,), v (2,)]). nan_at (term, step): that term is NaN at that step; interrupt_at:
     KeyboardInterrupt at that step; sleep_s: seconds per step from step slow_from on; jump_at: from that
-    step on the 'fit' term is weighted 100x (the training loss rises)."""
+    step on the 'fit' term is weighted 100x (the training loss rises); device: where the parameters and draws live."""
     torch.manual_seed(0)
-    w = torch.nn.Parameter(torch.zeros(3))
-    v = torch.nn.Parameter(torch.zeros(2))
-    targets = torch.linspace(0.5, 1.5, 30).reshape(10, 3)
+    w = torch.nn.Parameter(torch.zeros(3, device=device))
+    v = torch.nn.Parameter(torch.zeros(2, device=device))
+    targets = torch.linspace(0.5, 1.5, 30, device=device).reshape(10, 3)
 
     def batch(items, at):
         return targets[items], float(at.rng.normal())
@@ -34,7 +34,7 @@ def toy(nan_at=None, interrupt_at=None, sleep_s=0.0, slow_from=0, jump_at=None, 
         if at.step >= slow_from:
             time.sleep(sleep_s)
         t, noise = b
-        jitter = 1e-2 * torch.randn(3)
+        jitter = 1e-2 * torch.randn(3, device=device)
         weight = 100.0 if jump_at is not None and at.step >= jump_at else 1.0
         terms = {"fit": weight * (w - t.mean(0) + jitter).square().sum(), "reg": 0.5 * (v - noise).square().sum()}
         if nan_at is not None and at.step == nan_at[1]:
