@@ -15,6 +15,7 @@ import logging
 import os
 import shutil
 import time
+from dataclasses import replace
 from functools import partial
 from pathlib import Path
 
@@ -71,13 +72,6 @@ def method_class(cfg: DictConfig):
 
     impl = cfg.method.impl or cfg.method.name
     return methods.get(impl)
-
-
-def check_device(method_cls, name: str, device: torch.device) -> None:
-    """Refuse a run on a device type the method does not support (``DrapingMethod.devices``), naming the fix."""
-    if device.type not in method_cls.devices:
-        raise ValueError(f"device={device.type}: method {name} trains and drapes on {' or '.join(method_cls.devices)} only "
-                         f"in this version; run it with device=cpu")
 
 
 CHECKPOINTS = Cache("checkpoints", 1)
@@ -258,6 +252,7 @@ def failure_record(cfg: DictConfig, err: BaseException) -> dict:
 
 def _run(cfg: DictConfig, out: Path) -> dict:
     from drapebench.body import load_body
+    from drapebench.body.model import torch_device
 
     t_start = time.perf_counter()
     viz = getattr(cfg.viz, "name", cfg.viz)  # a VizMode member once validated by the schema
@@ -277,9 +272,12 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     method_cls = method_class(cfg)  # fail fast on an unknown method
     stages = {}
     t = time.perf_counter()
-    scene = Scene.from_config(cfg)
-    check_device(method_cls, cfg.method.name, scene.device)
+    device = torch_device(cfg.device)  # a CUDA run on a machine without CUDA is refused here, naming the fix
+    # The scene (body sequence, garment, reference, metrics, recording) is built and scored on the CPU; the method
+    # trains and drapes on the run's device with its own copy of the body, and its drape comes back once.
+    scene = Scene.from_config(cfg, device="cpu")
     body, material, seq, garment, dtype = scene.body, scene.material, scene.seq, scene.garment, scene.dtype
+    run_body = body if device.type == "cpu" else load_body(cfg.body.name, dtype=dtype, device=device)
     stages["scene_s"] = time.perf_counter() - t
     log.info("scene: %s (%d vertices) on %s, %s (%d frames) in %.1f s", garment.kind, garment.n_vertices, body.name, seq.name,
              seq.n_frames, stages["scene_s"])  # fmt: skip
@@ -292,7 +290,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     method = method_cls(OmegaConf.to_container(cfg.method.params, resolve=True))
     train_cfg = OmegaConf.to_container(cfg.train, resolve=True)
 
-    data = scene.train_data(method)
+    data = scene.train_data(method, run_body)
     t = time.perf_counter()
     train_s, ckpt = _checkpoint(method, cfg, garment, data, train_cfg, log_dir=out)
     stages["fit_s"] = time.perf_counter() - t
@@ -300,17 +298,20 @@ def _run(cfg: DictConfig, out: Path) -> dict:
         warn_untrained_shape(seq.betas, train_cfg, OmegaConf.to_container(cfg.method.params, resolve=True), cfg.method.name)
 
     t = time.perf_counter()
-    result = method.drape(garment, seq)
+    on_device = method.drape(garment, seq)
+    if device.type == "cuda":  # the drape's time is its kernels', not their launch
+        torch.cuda.synchronize(device)
     drape_s = time.perf_counter() - t
-    bad = (~torch.isfinite(result.vertices)).flatten(1).any(1)
+    bad = (~torch.isfinite(on_device.vertices)).flatten(1).any(1)
     if bad.any():
         raise NonFiniteDrape(cfg.method.name, torch.nonzero(bad).squeeze(1).tolist(), seq.n_frames)
+    result = replace(on_device, vertices=on_device.vertices.cpu(), extras={k: v.cpu() for k, v in on_device.extras.items()})
     t = time.perf_counter()
     summary, frames = _evaluate(cfg, garment, seq, body, result.vertices, reference, material)
-    for variant, drape in method.scored_variants(seq, result).items():  # the same metrics, suffixed @variant
-        scored = _evaluate(cfg, garment, seq, body, drape, reference, material)[0]
+    for variant, drape in method.scored_variants(seq, on_device).items():  # the same metrics, suffixed @variant
+        scored = _evaluate(cfg, garment, seq, body, drape.cpu(), reference, material)[0]
         summary.update({f"{k}@{variant}": v for k, v in scored.items() if k in METRICS})
-    summary.update(method.diagnostics(garment, seq, result))  # method-specific measurements, e.g. the VAE's canonical collisions
+    summary.update(method.diagnostics(garment, seq, on_device))  # method-specific measurements, e.g. the VAE's canonical collisions
     stages["eval_s"] = time.perf_counter() - t
     record = {
         "method": cfg.method.name, "garment": cfg.garment.kind, "motion": cfg.motion.name, "body": cfg.body.name,
@@ -339,7 +340,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
 
         t = time.perf_counter()
         inside = inside_body(result.vertices, seq.vertices(body), body.faces)  # the rule behind eps_c
-        shown = body if cfg.viz_body is None else load_body(cfg.viz_body, device=cfg.device)  # a lighter body, same motion
+        shown = body if cfg.viz_body is None else load_body(cfg.viz_body)  # a lighter body, same motion
         if shown.n_joints != body.n_joints:
             raise ValueError(f"viz_body={cfg.viz_body} has {shown.n_joints} joints, the run's body {body.name} {body.n_joints}: "
                              "it cannot play the same motion; choose a body of the same skeleton (anny, anny_lowres)")  # fmt: skip

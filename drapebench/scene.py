@@ -73,14 +73,15 @@ class Scene:
         log.info("reference %s: %s", solver, f"loaded from {rec.path}" if rec.from_cache else f"simulated in {rec.sim_s:.1f} s")
         return rec.vertices.to(self.garment.vertices.dtype)
 
-    def train_data(self, method):
+    def train_data(self, method, body=None):
         """The :class:`drapebench.data.TrainData` ``method`` trains on, read the first time training asks for it: the
-        reference set of ``cfg.data`` when the method declares ``needs_reference`` (supervised on reference drapes),
-        else the sequences of ``cfg.train.dataset``."""
+        reference set of ``cfg.data`` (simulated on the scene's body) when the method declares ``needs_reference``
+        (supervised on reference drapes), else the sequences of ``cfg.train.dataset``. ``body``: the body the method
+        trains on (the scene's body on the run's device; default the scene's body)."""
         from drapebench.data import H5Sequences, References, TrainData
 
         cfg = self.cfg
-        common = dict(body=self.body, material=self.material, garment=self.garment, test_sequences=[self.seq])
+        common = dict(body=self.body if body is None else body, material=self.material, garment=self.garment, test_sequences=[self.seq])
         if not method.needs_reference:
             from drapebench.body.dataset import build_dataset
 

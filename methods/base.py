@@ -50,7 +50,6 @@ class DrapingMethod(ABC):
     name: str = "base"
     generic: bool = False  # one model for any garment (True) vs one model per garment
     needs_reference: bool = False  # trains on physics-based reference drapes
-    devices: tuple[str, ...] = ("cpu", "cuda")  # torch device types a run (fit and drape) may use
     displaced_from: tuple[str, ...] = ()  # extras stages in the drape's space: the recording colours the drape by its distance from each
 
     def __init__(self, cfg: Mapping[str, Any] | None = None) -> None:

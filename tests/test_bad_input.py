@@ -391,12 +391,11 @@ def test_two_processes_building_one_cache_entry_at_once_both_get_it_and_leave_on
     assert Cache("race", 1).load(path, np.load).sum() == expected  # sealed and intact
 
 
-def test_a_method_refuses_a_device_it_does_not_support():
-    import methods
-    from drapebench.experiment import check_device
+@pytest.mark.parametrize("method", ["gaps", "gensim", "vae"])
+def test_a_cuda_run_without_cuda_is_refused_before_the_scene_naming_the_key(method, monkeypatch, tmp_path):
+    from drapebench.experiment import run
+    from tests.test_experiment import _compose
 
-    for name in ("gaps", "gensim", "vae"):
-        with pytest.raises(ValueError, match=rf"device=cuda: method {name} trains and drapes on cpu only .* device=cpu"):
-            check_device(methods.get(name), name, torch.device("cuda"))
-        check_device(methods.get(name), name, torch.device("cpu"))
-    check_device(methods.get("lbs"), "lbs", torch.device("cuda"))
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
+    with pytest.raises(ValueError, match=r"device=cuda requested but .*use device=cpu, or install a CUDA build of torch"):
+        run(_compose([f"method={method}", "device=cuda", "viz=none"]), tmp_path)
