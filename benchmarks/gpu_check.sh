@@ -10,13 +10,13 @@
 #
 # Run from the repository root:   OUT=/path/to/results bash benchmarks/gpu_check.sh
 # Environment: DEVICE (cuda; DEVICE=cpu tries the script on a machine without a GPU), OUT (default ./gpu_check_out),
-# PYTHON (default python3), STEPS (training steps of each run, default 40).
+# PYTHON (default python3), STEPS (training steps of each run, default 30).
 set -u
 cd "$(dirname "$0")/.."
 DEVICE=${DEVICE:-cuda}
 OUT=${OUT:-$PWD/gpu_check_out}
 PY=${PYTHON:-python3}
-STEPS=${STEPS:-40}
+STEPS=${STEPS:-30}
 WORK=$(mktemp -d)
 mkdir -p "$OUT"
 LOG="$OUT/gpu_check.log"
@@ -75,9 +75,9 @@ else
 fi
 
 # 3. one training step, timed on the device and on the CPU
-step train_step_device "$PY" benchmarks/bench_train_step.py --device "$DEVICE" --steps 25
+step train_step_device "$PY" benchmarks/bench_train_step.py --device "$DEVICE" --steps 20
 if [ "$DEVICE" != cpu ]; then
-  step train_step_cpu "$PY" benchmarks/bench_train_step.py --device cpu --steps 15
+  step train_step_cpu "$PY" benchmarks/bench_train_step.py --device cpu --steps 12
 fi
 grep -h "ms/step" "$LOG" >"$OUT/train_step.txt" || true
 

@@ -82,6 +82,11 @@ def hem_vertices(garment) -> torch.Tensor:
     return torch.as_tensor(min(loops, key=lambda loop: z[torch.as_tensor(loop, device=z.device)].mean().item()), device=z.device).long()
 
 
+def _moved(items: list[tuple], device) -> list[tuple]:
+    """Training items (tuples of tensors and plain values) with their tensors on ``device``."""
+    return [tuple(v.to(device) if isinstance(v, torch.Tensor) else v for v in item) for item in items]
+
+
 class GenSim(DrapingMethod):
     """Motion-aware ARAP + PEN (see the module docstring)."""
 
@@ -268,7 +273,7 @@ class GenSim(DrapingMethod):
                            [(g.vertices, g.faces, g.pins) for g in garments], prefix="frames", suffix=".pt")  # fmt: skip
         items = FRAMES.load(path, partial(torch.load, map_location="cpu", weights_only=False))
         if items is not None:  # prepared (and cached) on the CPU, moved to the body's device once
-            return graphs, [tuple(v.to(body.device) if isinstance(v, torch.Tensor) else v for v in item) for item in items]
+            return graphs, _moved(items, body.device)
         log.info("gensim: computing the ARAP stage of %d training frames (%d garments; cached after)",
                  len(garments) * tp["sequences"] * tp["frames_per_sequence"], len(garments))  # fmt: skip
         rng = np.random.default_rng(seed)
@@ -290,7 +295,7 @@ class GenSim(DrapingMethod):
         if not items:
             raise RuntimeError("gensim: no training frames (every reference simulation failed); see the warnings above")
         FRAMES.store(path, lambda tmp: torch.save(items, tmp))  # on the CPU: a cache any device reads
-        return graphs, [tuple(v.to(body.device) if isinstance(v, torch.Tensor) else v for v in item) for item in items]
+        return graphs, _moved(items, body.device)
 
     def _reference_frames(self, garment, seq, frames):
         """Reference drapes (F, V, 3) of ``frames`` of ``seq`` in the front-aligned frame (the supervised
