@@ -22,7 +22,7 @@ mkdir -p "$OUT"
 LOG="$OUT/gpu_check.log"
 : >"$LOG"
 export DRAPEBENCH_DATA="$WORK/data" DRAPEBENCH_PROGRESS=0 RERUN_ANALYTICS=0 PYTHONUNBUFFERED=1 HYDRA_FULL_ERROR=1
-export WARP_CACHE_PATH="$WORK/warp"
+export WARP_CACHE_PATH="$WORK/warp" PYTHONPATH="$PWD${PYTHONPATH:+:$PYTHONPATH}"  # the package need not be installed
 FAILED=()
 
 step() {  # step NAME COMMAND...: run, log, time; a failure is recorded and the script goes on
