@@ -354,11 +354,6 @@ def claim_tables(claims: list, reports: Path) -> dict:
     return {p.stem: read_table(p) for p in paths}
 
 
-def verdict_counts(claims: list, reports: Path, code: dict | None = None) -> pd.Series:
-    """The number of claims per verdict class, largest first."""
-    return _judge(claims, reports, code)[1]
-
-
 def _judge(claims: list, reports: Path, code: dict | None):
     tables = claim_tables(claims, reports)
     floors = resolution_floors(tables)
