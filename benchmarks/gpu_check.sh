@@ -56,7 +56,7 @@ step tests "$PY" -m pytest -q -p no:cacheprovider tests/methods/test_devices.py 
   "tests/train/test_trainer.py::test_an_interrupted_run_resumes_from_its_checkpoint_and_ends_where_an_uninterrupted_run_ends"
 
 # 2. short runs on one garment (the low-resolution body, 20 frames of walk), each into its own folder
-RUN=("$PY" run.py experiment=smoke "device=$DEVICE" reference=none viz=none motion=walk "train.steps=$STEPS")
+RUN=("$PY" run.py experiment=smoke "device=$DEVICE" reference=none viz=none tracker=none motion=walk "train.steps=$STEPS")
 step run_gaps "${RUN[@]}" method=gaps garment=skirt ++method.params.relax_components=1 ++method.params.relax_iterations=20 \
   "hydra.run.dir=$WORK/runs/gaps"
 copy_metrics gaps
