@@ -10,7 +10,8 @@
 #
 # Run from the repository root:   OUT=/path/to/results bash benchmarks/gpu_check.sh
 # Environment: DEVICE (cuda; DEVICE=cpu tries the script on a machine without a GPU), OUT (default ./gpu_check_out),
-# PYTHON (default python3), STEPS (training steps of each run, default 30).
+# PYTHON (default python3), STEPS (training steps of each run, default 30), DRAPEBENCH_DATA (the data folder, default a
+# fresh temporary one; a copy of data/cache/garments there spares a machine without pymeshlab the remeshing).
 set -u
 cd "$(dirname "$0")/.."
 DEVICE=${DEVICE:-cuda}
@@ -21,7 +22,7 @@ WORK=$(mktemp -d)
 mkdir -p "$OUT"
 LOG="$OUT/gpu_check.log"
 : >"$LOG"
-export DRAPEBENCH_DATA="$WORK/data" DRAPEBENCH_PROGRESS=0 RERUN_ANALYTICS=0 PYTHONUNBUFFERED=1 HYDRA_FULL_ERROR=1
+export DRAPEBENCH_DATA="${DRAPEBENCH_DATA:-$WORK/data}" DRAPEBENCH_PROGRESS=0 RERUN_ANALYTICS=0 PYTHONUNBUFFERED=1 HYDRA_FULL_ERROR=1
 export WARP_CACHE_PATH="$WORK/warp" PYTHONPATH="$PWD${PYTHONPATH:+:$PYTHONPATH}"  # the package need not be installed
 FAILED=()
 

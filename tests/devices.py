@@ -51,6 +51,8 @@ def _site() -> tuple[str | None, bool]:
     frame, network = sys._getframe(2), False
     while frame is not None and ("/torch/" in frame.f_code.co_filename or frame.f_code.co_filename == __file__):
         network = network or "/torch/nn/modules/" in frame.f_code.co_filename  # a layer's construction
+        if "/torch/optim/" in frame.f_code.co_filename:  # an optimizer's own state (Adam keeps its step count on the host)
+            return None, network
         frame = frame.f_back
     if frame is None or not frame.f_code.co_filename.startswith(PROJECT):
         return None, network
