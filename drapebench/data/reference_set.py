@@ -11,7 +11,9 @@ inside a body shape) is never cached: it is recorded in the set's manifest (``da
 garment, sequence, cause) and skipped, also by later runs, until ``force``.
 
 Presets are ``conf/data/<name>.yaml`` (``data=cpu`` small, the default; ``data=paper`` large, for a GPU);
-by hand: ``python -m drapebench.data.reference_set --garment tshirt --body anny --data cpu --jobs 2``.
+by hand: ``python -m drapebench.data.reference_set --garment tshirt --body anny --data cpu --jobs 2``; on a
+cluster, one job per sequence through Hydra's submitit launcher: :mod:`drapebench.data.reference_jobs`.
+:func:`collect_reference_set` says what the cache holds of a set (done, failed, missing) without simulating.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ import time
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
+import numpy as np
 import torch
 import yaml
 
@@ -141,8 +144,17 @@ class ReferenceSet:
                 f"this build {self.wall_s / 60:.1f} min" + (f" (failed: {causes})" if causes else ""))  # fmt: skip
 
 
-def _simulate_one(garment, seq, body, material, spec: ReferenceSetSpec, force: bool, threads: int | None) -> dict:
-    """Simulate (or load) one drape in a worker; a dict with the cache path and original sim time, or the failure."""
+def sequence_failure(garment, seq, err: Exception) -> dict:
+    """The record of a failed simulation of ``garment`` on ``seq``: garment, sequence, error, cause (the message), attempts."""
+    return {"garment": garment.name, "sequence": seq.name, "error": type(err).__name__, "cause": str(err),
+            "attempts": getattr(err, "attempts", None)}  # fmt: skip
+
+
+def simulate_one(garment, seq, body, material, spec: ReferenceSetSpec, force: bool = False, threads: int | None = None) -> dict:
+    """Simulate (or load) the drape of ``garment`` on ``seq`` against the collider ``body`` in this process (a worker
+    or a cluster job; ``threads`` torch threads); a dict with the cache path, the original simulation time and
+    ``from_cache``, or the failure (garment, sequence, error, cause; a diverged simulation's failure is also
+    recorded beside the cache by :mod:`drapebench.reference.simulator`, so the next try fails at once)."""
     from drapebench.reference import SimulationDiverged, simulate_record
     from drapebench.reference.simulator import GarmentStartsInside
 
@@ -151,8 +163,7 @@ def _simulate_one(garment, seq, body, material, spec: ReferenceSetSpec, force: b
     try:
         rec = simulate_record(garment, seq, body, material, spec.solver, force=force, progress=False, **spec.settings)
     except (SimulationDiverged, GarmentStartsInside) as err:
-        return {"garment": garment.name, "sequence": seq.name, "error": type(err).__name__, "cause": str(err),
-                "attempts": getattr(err, "attempts", None)}  # fmt: skip
+        return sequence_failure(garment, seq, err)
     return {"sequence": seq.name, "path": rec.path, "sim_s": rec.sim_s, "from_cache": rec.from_cache,
             "attempts": rec.stats.get("attempts")}  # fmt: skip
 
@@ -192,7 +203,7 @@ def build_reference_set(garment, body, material, spec: ReferenceSetSpec, n_jobs:
                "done": [done[s.name] for s in seqs if s.name in done]}  # fmt: skip
         MANIFESTS.store(manifest_path, lambda tmp: Path(tmp).write_text(json.dumps(doc, indent=2)))
 
-    jobs = (delayed(_simulate_one)(garment, seq, collider, material, spec, force, threads) for seq in todo)
+    jobs = (delayed(simulate_one)(garment, seq, collider, material, spec, force, threads) for seq in todo)
     bar = progress_bar(total=len(todo), desc=f"references {garment.name} {spec.name}", unit="seq") if progress else None
     try:
         for result in Parallel(n_jobs=n_jobs, return_as="generator_unordered")(jobs):
@@ -211,6 +222,34 @@ def build_reference_set(garment, body, material, spec: ReferenceSetSpec, n_jobs:
     return ReferenceSet(garment.name, spec, seqs, {name: r["path"] for name, r in done.items()},
                         [failed[s.name] for s in seqs if s.name in failed], sum(r["sim_s"] for r in done.values()),
                         time.perf_counter() - t0)  # fmt: skip
+
+
+def collect_reference_set(garment, body, material, spec: ReferenceSetSpec) -> tuple[ReferenceSet, list]:
+    """What the cache holds of the reference set of ``spec`` now, simulating nothing: (the :class:`ReferenceSet` of
+    the sealed drapes and the recorded failures (diverged simulations), the planned sequences with neither). ``body``
+    is the garment's body (the collider unless ``spec.body`` names another)."""
+    from drapebench.body import load_body
+    from drapebench.reference import reference_path
+    from drapebench.reference.simulator import REFERENCES, recorded_failure
+
+    def read_meta(path):
+        with np.load(path, allow_pickle=False) as data:
+            return json.loads(str(data["meta"]))
+
+    collider = load_body(spec.body) if spec.body else body
+    seqs = spec_sequences(spec.dataset_spec())
+    paths, failed, missing, sim_s = {}, [], [], 0.0
+    for seq in seqs:
+        path = reference_path(garment, seq, collider, material, spec.solver, **spec.settings)
+        meta = REFERENCES.load(path, read_meta)
+        failure = None if meta is not None else recorded_failure(path)
+        if meta is not None:
+            paths[seq.name], sim_s = str(path), sim_s + sum(meta["timings_s"].values())
+        elif failure is not None:
+            failed.append(sequence_failure(garment, seq, failure))
+        else:
+            missing.append(seq)
+    return ReferenceSet(garment.name, spec, seqs, paths, failed, sim_s), missing
 
 
 def load_reference_set(cfg_data, garment, body, material, n_jobs: int | None = None, progress: bool = True,

@@ -480,12 +480,12 @@ def _record_failure(path: Path, err: SimulationDiverged) -> None:
         json.dump(record, f)
 
 
-def _raise_recorded_failure(path: Path) -> None:
-    """Raise the failure recorded for the simulation cached at ``path``, if any (``force=true`` runs it again);
-    an unreadable record is removed with a warning."""
-    failure = _failure_path(path)
+def recorded_failure(path: str | Path) -> SimulationDiverged | None:
+    """The failure recorded for the simulation cached at ``path`` (:func:`reference_path`), as the error it raised
+    (with its ``attempts``); None when there is none. An unreadable record is removed with a warning."""
+    failure = _failure_path(Path(path))
     if not failure.exists():
-        return
+        return None
     try:
         r = json.loads(failure.read_text())
         err = FAILURES[r["error"]](r["garment"], r["sequence"], r["frame"], r["n_frames"], r["reason"], SimSettings(**r["settings"]),
@@ -493,10 +493,17 @@ def _raise_recorded_failure(path: Path) -> None:
     except (ValueError, KeyError, TypeError) as e:
         log.warning("removing the unreadable failure record %s (%s)", failure, e)
         failure.unlink(missing_ok=True)
-        return
+        return None
     err.attempts = r["attempts"]
-    log.warning("this simulation failed before with the same settings (%s); not run again (force=true runs it)", failure.name)
-    raise err
+    return err
+
+
+def _raise_recorded_failure(path: Path) -> None:
+    """Raise the failure recorded for the simulation cached at ``path``, if any (``force=true`` runs it again)."""
+    err = recorded_failure(path)
+    if err is not None:
+        log.warning("this simulation failed before with the same settings (%s); not run again (force=true runs it)", _failure_path(path).name)
+        raise err
 
 
 def simulate_record(

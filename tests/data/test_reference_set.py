@@ -7,7 +7,7 @@ import torch
 
 import drapebench.reference.simulator as sim
 from drapebench.body.dataset import HELD_OUT_MOTIONS, spec_sequences
-from drapebench.data.reference_set import ReferenceSetSpec, build_reference_set, load_reference_set
+from drapebench.data.reference_set import ReferenceSetSpec, build_reference_set, collect_reference_set, load_reference_set
 from drapebench.garments import make_garment
 from drapebench.physics import Material
 from drapebench.reference import SimulationDiverged, reference_path
@@ -78,6 +78,19 @@ def test_an_interrupted_build_resumes_and_a_failure_is_recorded_not_cached(garme
     assert len(fake_run) == 5 and len(again) == 3 and len(again.failed) == 1
     build_reference_set(garment, body_lowres, Material(), SPEC, progress=False, force=True)
     assert len(fake_run) == 9 and not failed_path.exists()
+
+
+def test_the_cache_says_what_is_done_failed_and_missing_without_simulating(garment, body_lowres, fake_run):
+    refs, missing = collect_reference_set(garment, body_lowres, Material(), SPEC)
+    assert len(refs) == 0 and not refs.failed and [s.name for s in missing] == [s.name for s in refs.planned] and len(missing) == 4
+    with pytest.raises(KeyboardInterrupt):  # done: random_000; diverged: random_001; interrupted at walk_000
+        build_reference_set(garment, body_lowres, Material(), SPEC, progress=False)
+    refs, missing = collect_reference_set(garment, body_lowres, Material(), SPEC)
+    assert len(fake_run) == 3  # collecting simulates nothing
+    assert [s.name for s in refs.sequences] == ["train_random_000"] and refs.sim_s == pytest.approx(3.0)
+    assert [(f["sequence"], f["error"]) for f in refs.failed] == [("train_random_001", "SimulationDiverged")]
+    assert "test blow-up" in refs.failed[0]["cause"]
+    assert [s.name for s in missing] == ["train_walk_000", "train_walk_001"]
 
 
 def test_unknown_keys_are_named():
