@@ -10,13 +10,15 @@ A CPU-only machine cannot run a CUDA drape, but it can see what breaks one:
    (a network is built on the CPU and moved with ``.to(device)``, so its initial weights are the same on every
    device) are not recorded. A tensor meant to live on the CPU names it (``device="cpu"``, the string: a Host
    tensor, below).
-2. A CPU record used on the device without being moved: the scene's garment, body sequences and reference
-   drapes are CPU records, and a method moves what it needs to the run's device. :func:`host` marks a record's
-   tensors as :class:`Host` tensors, whose ``.device`` reads ``cpu:0``, a device distinct from the run's ``cpu``
-   as the CPU is from CUDA. An operation that mixes a Host tensor with a run-device tensor (both with
-   elements) is recorded, as CUDA would refuse it; ``.to(device)`` of a Host tensor to the run's device gives an
-   ordinary tensor, ``.to(dtype)`` and ``.cpu()`` keep it on the host, and a tensor indexed by a Host index
-   (which CUDA accepts) is not recorded.
+2. A CPU tensor used on the device without being moved: the scene's garment, body sequences and reference
+   drapes are CPU records, a method moves what it needs to the run's device, and what a CPU stage (libigl, a
+   k-d tree) computes comes back. :func:`host` marks a record's tensors as :class:`Host` tensors, whose ``.device``
+   reads ``cpu:0``, a device distinct from the run's ``cpu`` (a ``torch.device``) as the CPU is from CUDA; within
+   the guard, what the project's code brings to the host (``.cpu()``, ``.to("cpu")``, ``torch.from_numpy``, a
+   factory with ``device="cpu"``) is a Host tensor too. An operation that mixes a Host tensor with a run-device
+   tensor (both with elements) is recorded, as CUDA would refuse it; ``.to(device)`` of a Host tensor to the run's
+   device gives an ordinary tensor, ``.to(dtype)`` keeps it on the host, and neither a tensor indexed by a Host
+   index nor a copy between the two (both of which CUDA accepts) is recorded.
 """
 
 from __future__ import annotations
@@ -73,7 +75,8 @@ def _as_host(out):
 
 
 def _is_host_device(device) -> bool:
-    return device is not None and torch.device(device) == HOST
+    """Whether ``device`` names the host: the string "cpu" (the run's device is a torch.device) or :data:`HOST`."""
+    return device == "cpu" or (device is not None and torch.device(device) == HOST)
 
 
 class StrayTensors(TorchFunctionMode):
@@ -87,17 +90,22 @@ class StrayTensors(TorchFunctionMode):
 
     def __enter__(self):
         _GUARDS.append(self)
+        torch.from_numpy = _from_numpy
         return super().__enter__()
 
     def __exit__(self, *exc):
         _GUARDS.remove(self)
+        torch.from_numpy = _FROM_NUMPY
         return super().__exit__(*exc)
 
     def __torch_function__(self, func, types, args=(), kwargs=None):
         kwargs = kwargs or {}
+        if func is torch.Tensor.cpu or func is torch.Tensor.to and _is_host_device(_target(args[1:], kwargs)):
+            out = func(*args, **kwargs)  # a run-device tensor brought to the host by the project's code: a Host tensor
+            return _as_host(out) if _site()[0] is not None else out
         if func not in FACTORIES:
             return func(*args, **kwargs)
-        if _is_host_device(kwargs.get("device")) or kwargs.get("device") == "cpu":  # beside a Host tensor, or named "cpu": on the host
+        if _is_host_device(kwargs.get("device")):  # beside a Host tensor, or named "cpu": on the host
             return _as_host(func(*args, **{**kwargs, "device": "cpu"}))
         if args and type(args[0]) is Host:  # torch.as_tensor(host, ...): on the host unless moved to a device
             out = func(args[0].as_subclass(torch.Tensor), *args[1:], **kwargs)
@@ -110,13 +118,22 @@ class StrayTensors(TorchFunctionMode):
 
 
 def _target(args, kwargs):
-    """The device a ``Tensor.to`` call names (a tensor argument: that tensor's), or None."""
+    """The device a ``Tensor.to`` call names (a tensor argument: that tensor's; "cpu": :data:`HOST`), or None."""
     for a in (*args, kwargs.get("device"), kwargs.get("other")):
         if isinstance(a, torch.Tensor):
             return HOST if type(a) is Host else a.device
         if isinstance(a, (torch.device, str)):
-            return torch.device(a)
+            return HOST if _is_host_device(a) else torch.device(a)
     return None
+
+
+_FROM_NUMPY = torch.from_numpy
+
+
+def _from_numpy(array):
+    """``torch.from_numpy`` in a guard: a Host tensor when the project's code calls it (it is on the host)."""
+    out = _FROM_NUMPY(array)
+    return _as_host(out) if _site()[0] is not None else out
 
 
 class Host(torch.Tensor):
@@ -127,6 +144,8 @@ class Host(torch.Tensor):
         kwargs = kwargs or {}
         if getattr(func, "__self__", None) is _DEVICE:
             return HOST
+        if func is torch.Tensor.cpu:
+            return args[0]
         with torch._C.DisableTorchFunctionSubclass():
             if func is torch.Tensor.to or func is torch.Tensor.cuda or func in FACTORIES:
                 device = {torch.Tensor.to: lambda: _target(args[1:], kwargs), torch.Tensor.cuda: lambda: torch.device("cuda")}.get(
@@ -142,7 +161,7 @@ class Host(torch.Tensor):
             copied = func in (torch.Tensor.__setitem__, torch.Tensor.copy_)  # a copy crosses devices
             out = func(*args, **kwargs)
         if host and device and not (indexed or copied):
-            _record(f"{getattr(func, '__name__', func)} mixes a CPU record (not moved) with the run's device")
+            _record(f"{getattr(func, '__name__', func)} mixes a CPU tensor (not moved) with the run's device")
         if func is torch.Tensor.numpy or func is torch.Tensor.tolist or func is torch.Tensor.item:
             return out
         if host and not device or not device and any(type(t) is Host for t in tensors):

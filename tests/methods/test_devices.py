@@ -56,7 +56,7 @@ def test_gaps_trains_and_drapes_on_the_run_device(device, body_lowres):
         out = m.drape(garment, test)
         m.scored_variants(test, out)
         again = _reloaded(m, cfg, body, garment, test)
-    assert not stray.sites, "tensors created without the run's device:\n" + "\n".join(stray.sites)
+    assert not stray.sites, "tensors off the run's device:\n" + "\n".join(stray.sites)
     _on(device, out, m)
     torch.testing.assert_close(again.vertices, out.vertices)  # a checkpoint read onto the CPU drapes on the device
 
@@ -75,7 +75,7 @@ def test_gensim_trains_and_drapes_on_the_run_device(device, body_lowres):
         out = m.drape(garment, test)
         m.diagnostics(garment, test, out)
         again = _reloaded(m, GENSIM, body, garment, test)
-    assert not stray.sites, "tensors created without the run's device:\n" + "\n".join(stray.sites)
+    assert not stray.sites, "tensors off the run's device:\n" + "\n".join(stray.sites)
     _on(device, out, m)
     torch.testing.assert_close(again.vertices, out.vertices)  # a checkpoint read onto the CPU drapes on the device
     assert out.extras["arap"].device.type == device
@@ -101,6 +101,6 @@ def test_vae_trains_and_drapes_on_the_run_device(device, body_lowres):
         out = m.drape(garment, test)
         m.diagnostics(garment, test, out)
         again = _reloaded(m, cfg, body, garment, test, diffused=m.diffused, sdf=m.sdf)
-    assert not stray.sites, "tensors created without the run's device:\n" + "\n".join(stray.sites)
+    assert not stray.sites, "tensors off the run's device:\n" + "\n".join(stray.sites)
     _on(device, out, m)
     torch.testing.assert_close(again.vertices, out.vertices)  # a checkpoint read onto the CPU drapes on the device
