@@ -66,7 +66,7 @@ def _update(h: "hashlib._Hash", obj: Any) -> None:
     elif isinstance(obj, np.ndarray):
         arr = np.ascontiguousarray(obj)
         h.update(f"A{arr.dtype.str}{arr.shape};".encode())
-        h.update(arr.tobytes())
+        h.update(arr.tobytes() if arr.dtype.hasobject else arr.reshape(-1).view(np.uint8))  # the bytes, not a copy of them
     elif isinstance(obj, np.generic):
         _update(h, obj.item())
     elif hasattr(obj, "__dataclass_fields__"):

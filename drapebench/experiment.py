@@ -302,9 +302,11 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     if device.type == "cuda":  # the drape's time is its kernels', not their launch
         torch.cuda.synchronize(device)
     drape_s = time.perf_counter() - t
-    bad = (~torch.isfinite(on_device.vertices)).flatten(1).any(1)
-    if bad.any():
-        raise NonFiniteDrape(cfg.method.name, torch.nonzero(bad).squeeze(1).tolist(), seq.n_frames)
+    from drapebench.metrics import nonfinite_frames
+
+    bad = nonfinite_frames(on_device.vertices)
+    if bad:
+        raise NonFiniteDrape(cfg.method.name, bad, seq.n_frames)
     result = replace(on_device, vertices=on_device.vertices.cpu(), extras={k: v.cpu() for k, v in on_device.extras.items()})
     t = time.perf_counter()
     summary, frames = _evaluate(cfg, garment, seq, body, result.vertices, reference, material)
@@ -321,8 +323,11 @@ def _run(cfg: DictConfig, out: Path) -> dict:
         **{f"ms_{k}": v / seq.n_frames for k, v in result.timings_ms.items() if k != "setup"},
         "seed": int(cfg.seed), "train_seed": int(cfg.train.seed), "device": str(cfg.device), "experiment": cfg.experiment_name, "checkpoint": ckpt, "commit": git_commit(),
     }  # fmt: skip
+    from drapebench.export import input_hashes
+
     write_prediction(out / "prediction.h5", result.vertices, garment.faces, method=cfg.method.name, garment=garment.kind,
-                     motion=seq.name, body=cfg.body.name, fps=seq.fps, n_transition=seq.n_transition)  # fmt: skip
+                     motion=seq.name, body=cfg.body.name, fps=seq.fps, n_transition=seq.n_transition,
+                     inputs=json.dumps(input_hashes(garment, seq, body)))  # what an export checks  # fmt: skip
     if export != "none":
         from drapebench.export import Drape, export_drape
 

@@ -19,6 +19,7 @@ import torch
 from drapebench.geometry.ops import edge_lengths, face_areas
 from drapebench.geometry.sdf import body_proximity
 from drapebench.physics import Material, energy_terms
+from drapebench.progress import progress
 
 MAX_FLOAT32_DISTANCE = 1000.0  # m: the farthest float32 positions are measured from the origin (docs/metrics.md)
 
@@ -33,15 +34,21 @@ def _check_positions(x, n_frames: int, n_vertices: int, what: str) -> torch.Tens
     if p.shape != (n_frames, n_vertices, 3):
         raise ValueError(f"{what} has shape {tuple(p.shape)}; expected ({n_frames}, {n_vertices}, 3) for this garment "
                          "and sequence (one row per frame of the sequence, one per garment vertex)")  # fmt: skip
-    bad = (~torch.isfinite(p)).flatten(1).any(1)
-    if bad.any():
-        frames = torch.nonzero(bad).squeeze(1).tolist()
+    frames = nonfinite_frames(p)
+    if frames:
         more = f" and {len(frames) - 10} more" if len(frames) > 10 else ""
         raise ValueError(f"{what} contains NaN/Inf in frames {frames[:10]}{more}")
     return p
 
 
 CHUNK_FRAMES = 256  # frames evaluated together: bounds evaluate()'s memory on long sequences
+
+
+def nonfinite_frames(x: torch.Tensor, chunk_frames: int = CHUNK_FRAMES) -> list[int]:
+    """The frames of positions ``x`` (T, ...) that hold NaN or Inf, checked ``chunk_frames`` at a time (no temporary
+    the size of a long drape)."""
+    bad = [torch.nonzero((~torch.isfinite(x[a : a + chunk_frames])).flatten(1).any(1)).flatten() + a for a in range(0, len(x), chunk_frames)]
+    return torch.cat(bad).tolist() if bad else []
 
 
 def evaluate(
@@ -90,6 +97,7 @@ def evaluate(
     mass = float(topo.vertex_masses(material).double().sum()) if energies else 0.0  # kg: the garment's, fixed per garment
     chunks, depth_sum, n_inside = [], [], []
     with torch.no_grad():
+        bar = progress(total=seq.n_frames - first, desc="metrics", unit="frames")
         for start in range(first, seq.n_frames, chunk_frames):
             stop = min(start + chunk_frames, seq.n_frames)
             world = p[start:stop].to(device, torch.float64)
@@ -106,6 +114,8 @@ def evaluate(
             chunks.append({k: v.detach().cpu().double() for k, v in cols.items()})
             depth_sum.append(float(depth.double().sum()))
             n_inside.append(int(n_in.sum()))
+            bar.update(stop - start)
+        bar.close()
     columns = {k: torch.cat([c[k] for c in chunks]).numpy() for k in chunks[0]}
     df = pd.DataFrame({"frame": np.arange(first, seq.n_frames), **columns})
     summary = {k: float(df[k].mean()) for k in df.columns if k != "frame"}  # pandas skips the NaN jitter ends
@@ -147,7 +157,7 @@ def check_near_origin(positions: torch.Tensor, what: str = "prediction") -> None
     positions are measured at any distance (in each frame's local frame)."""
     if positions.dtype == torch.float64 or positions.numel() == 0:
         return
-    far = float(positions.abs().amax())
+    far = max(float(positions[a : a + CHUNK_FRAMES].abs().amax()) for a in range(0, len(positions), CHUNK_FRAMES))
     if far > MAX_FLOAT32_DISTANCE:
         spacing = float(torch.finfo(torch.float32).eps) * 2.0 ** np.floor(np.log2(far))
         raise FarFromOrigin(

@@ -14,6 +14,7 @@ import numpy as np
 import torch
 
 from drapebench.cache import PROJECT_ROOT, atomic_write
+from drapebench.progress import progress
 
 SUMMARY_COLUMNS = ["method", "garment", "motion", "body", "reference", "shape", "seed", "n_vertices", "n_frames", "eps_e", "eps_a", "eps_c", "eps_c_std",
                    "edge_mm", "smoothness", "penetration_mm", "jitter", "vertex_error_mm", "ms_per_frame", "train_s"]  # fmt: skip
@@ -132,10 +133,19 @@ def environment(device: str) -> dict:
     }  # fmt: skip
 
 
+PREDICTION_CHUNK = 1024  # frames converted and written at once by write_prediction
+
+
 def write_prediction(path: str | Path, vertices: torch.Tensor, faces: torch.Tensor, **attrs) -> None:
-    """Write draped vertices (T, V, 3) and faces (F, 3) with scalar/string attributes to h5, atomically."""
+    """Write draped vertices (T, V, 3) m (float64 kept float64: a float64 run's file is exact far from the origin;
+    anything else as float32) and faces (F, 3) with scalar/string attributes to h5, atomically; the vertices are
+    converted and written :data:`PREDICTION_CHUNK` frames at a time (no second copy of a long drape)."""
+    x = torch.as_tensor(vertices)
+    dtype = np.float64 if x.dtype == torch.float64 else np.float32
     with atomic_write(path, mode=None) as tmp, h5py.File(tmp, "w") as f:
-        f.create_dataset("vertices", data=np.asarray(vertices, dtype=np.float32), compression="gzip", compression_opts=1)
+        out = f.create_dataset("vertices", shape=tuple(x.shape), dtype=dtype, compression="gzip", compression_opts=1)
+        for a in progress(range(0, len(x), PREDICTION_CHUNK), desc=f"writing {Path(path).name}", unit="chunk"):
+            out[a : a + PREDICTION_CHUNK] = x[a : a + PREDICTION_CHUNK].detach().cpu().numpy().astype(dtype, copy=False)
         f.create_dataset("faces", data=np.asarray(faces, dtype=np.int32))
         for k, v in attrs.items():
             f.attrs[k] = v

@@ -514,3 +514,37 @@ def test_the_vae_on_data_cpu_has_no_shape_input_and_the_paper_preset_keeps_the_p
         assert params.get("regressor", {}).get("betas") == betas, overrides
         expected = 10 if betas is None else betas  # the code's default is the paper's beta in R^10
         assert methods.get(cfg.impl)(params).p["regressor"]["betas"] == expected
+
+
+def test_a_float64_run_30_km_from_the_origin_measures_what_it_measures_at_the_origin(tmp_path, body_lowres):
+    """A walk 30 km from the origin (an SMPL file read with root=file, so nothing moves it back): in float64 its
+    metrics are those of the same walk at the origin to float64's resolution at the body's scale (a skinning weight
+    row that sums to 1 within 4e-8 once moved the drape 1.2 mm there, a float32 root 0.9 mm per frame), and its
+    prediction.h5 is float64; in float32 the run is refused, naming dtype=float64."""
+    import numpy as np
+    import pandas as pd
+
+    from drapebench.body import make_sequence
+    from drapebench.body.amass import to_smpl_layout
+    from drapebench.experiment import run
+    from drapebench.metrics import FarFromOrigin
+    from drapebench.results import read_prediction
+
+    d = to_smpl_layout(make_sequence("walk", 8, 30.0, seed=1000, transition=3), body_lowres)
+    offset = np.array([30000.123456789, -12000.987654321, 0.0])  # m: float32 would round it to 2 mm
+    np.savez(tmp_path / "here.npz", **d)
+    np.savez(tmp_path / "far.npz", **{**d, "trans": d["trans"] + offset})
+    common = ["body=anny_lowres", "viz=none", "method=lbs", "motion=amass", "motion.root=file", "motion.transition=0", "dtype=float64"]
+    here, far = (run(_compose([*common, f"motion.path={tmp_path / n}.npz"]), tmp_path / n) for n in ("here", "far"))
+    assert here["eps_e"] > 0.1 and here["n_frames"] == far["n_frames"] == 11
+    for key in ("eps_e", "eps_a", "eps_c", "edge_mm", "max_strain", "penetration_mm", "garment_body_mm"):
+        assert far[key] == pytest.approx(here[key], rel=1e-9, abs=1e-9), key
+    assert far["jitter"] == pytest.approx(here["jitter"], abs=1e-6)  # mm
+    a, b = (pd.read_csv(tmp_path / n / "frames.csv") for n in ("here", "far"))
+    assert np.abs(a["eps_e"] - b["eps_e"]).max() < 1e-7, np.abs(a["eps_e"] - b["eps_e"]).max()  # % (float64 at 30 km: 4e-12 m apart)
+    x_here, _, _ = read_prediction(tmp_path / "here" / "prediction.h5")
+    x_far, _, _ = read_prediction(tmp_path / "far" / "prediction.h5")
+    assert x_far.dtype == np.float64
+    assert np.abs(x_far - offset - x_here).max() < 1e-9  # m: the same drape, moved
+    with pytest.raises(FarFromOrigin, match="dtype=float64"):
+        run(_compose([*common[:-1], f"motion.path={tmp_path / 'far'}.npz"]), tmp_path / "far32")

@@ -69,9 +69,11 @@ def test_usd_stage_holds_the_prediction_at_the_runs_time_codes_and_frame_rate(fi
     assert garment.GetPointsAttr().GetTimeSamples() == list(range(T))
     assert np.array_equal(np.array(garment.GetFaceVertexIndicesAttr().Get()).reshape(-1, 3), faces)
     assert set(garment.GetFaceVertexCountsAttr().Get()) == {3}
-    points = np.stack([np.array(garment.GetPointsAttr().Get(t)) for t in range(T)])
-    assert np.array_equal(points, vertices)  # float32 both: exact
-    body_points = np.stack([np.array(body.GetPointsAttr().Get(t)) for t in range(T)])
+    top = UsdGeom.Xformable(stage.GetPrimAtPath("/drape"))  # the root's translation, double precision; points relative to it
+    root = np.stack([np.array(top.ComputeLocalToWorldTransform(t).ExtractTranslation()) for t in range(T)])[:, None]
+    points = np.stack([np.array(garment.GetPointsAttr().Get(t)) for t in range(T)]) + root
+    assert np.abs(points - vertices).max() < 1e-6
+    body_points = np.stack([np.array(body.GetPointsAttr().Get(t)) for t in range(T)]) + root
     assert np.abs(body_points - body_vertices).max() < 1e-6
     assert np.array_equal(np.array(body.GetFaceVertexIndicesAttr().Get()).reshape(-1, 3), body_faces)
     strain = UsdGeom.PrimvarsAPI(garment).GetPrimvar("strain")
@@ -127,3 +129,38 @@ def test_export_errors_name_the_fix(finished_run, tmp_path, capsys, monkeypatch)
     assert "export=usd needs usd-core, which is not installed: pip install 'drapebench[export]'" in capsys.readouterr().err
     with pytest.raises(ValueError, match="export format 'fbx' is not one of usd, obj, pc2"):
         export_drape(tmp_path, None, "fbx")
+
+
+def test_an_export_after_the_motion_file_changed_is_refused(tmp_path, capsys):
+    """The run records its inputs' hashes; the same file exports, a changed one (poses of another motion under the
+    same name) is refused, naming the motion and its path, instead of pairing the old garment with the new body."""
+    register()
+    kick = make_sequence("kick", 4, 30.0, seed=3, transition=0)
+    np.savez(tmp_path / "m.npz", poses=kick.poses.numpy(), trans=kick.trans.numpy(), fps=30.0)
+    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
+        cfg = compose("config", overrides=["body=anny_lowres", "garment=skirt", "viz=none", "motion=file",
+                                           f"motion.path={tmp_path / 'm.npz'}", "motion.transition=2"])  # fmt: skip
+    run(cfg, tmp_path / "run")
+    assert len(main([str(tmp_path / "run"), "--format", "pc2"])) == 4  # unchanged: exported
+    np.savez(tmp_path / "m.npz", poses=0.5 * kick.poses.numpy(), trans=kick.trans.numpy(), fps=30.0)
+    with pytest.raises(SystemExit):
+        main([str(tmp_path / "run"), "--format", "pc2"])
+    assert f"the motion of this run changed since it ran (motion=file (motion.path={tmp_path / 'm.npz'}))" in capsys.readouterr().err
+
+
+def test_an_export_clears_a_killed_exports_temporary_files_and_names_a_folder_it_cannot_write(finished_run, tmp_path, capsys):
+    import shutil
+
+    out = tmp_path / "run"
+    shutil.copytree(finished_run[0], out)
+    stale = out / "export" / "obj" / ".garment_0000.obj.k1ll3d.tmp"  # what atomic_write leaves when the process is killed
+    stale.parent.mkdir(parents=True, exist_ok=True)
+    stale.write_text("v 0 0")
+    main([str(out), "--format", "obj"])
+    assert not stale.exists() and (out / "export" / "obj" / "garment_0000.obj").exists()
+    shutil.rmtree(out / "export" / "pc2", ignore_errors=True)  # an earlier test's pc2 export
+    (out / "export" / "pc2").write_text("a file where the export's folder goes")
+    with pytest.raises(SystemExit):
+        main([str(out), "--format", "pc2"])
+    err = capsys.readouterr().err
+    assert f"cannot write the pc2 export into {out / 'export'}" in err and "make the folder writable" in err and "Traceback" not in err

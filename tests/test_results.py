@@ -1,6 +1,7 @@
 """prediction.h5 round trip and atomic writes; the report reads run records without the pipeline."""
 
 import ast
+import sys
 from pathlib import Path
 
 import h5py
@@ -50,3 +51,38 @@ def test_a_run_records_the_commit_its_process_started_with(monkeypatch):
     monkeypatch.setattr(subprocess, "run", lambda *a, **k: subprocess.CompletedProcess(a, 0, stdout="f" * 40, stderr=""))
     assert results._head_commit().startswith("f" * 40)  # the repository moved on (a commit during a sweep) ...
     assert results.git_commit() == started  # ... the runs of this process still name the code they run
+
+
+def test_a_long_stage_logs_its_progress_with_an_estimate_where_no_bar_is_drawn(monkeypatch, caplog):
+    """stderr not a terminal (a log file): a line at most every LOG_EVERY_S with the count and the time left; a stage
+    shorter than that logs nothing; under CI nothing."""
+    import logging
+    import time
+
+    import drapebench.progress as progress_module
+
+    monkeypatch.delenv("CI", raising=False)
+    monkeypatch.delenv("DRAPEBENCH_PROGRESS", raising=False)
+    monkeypatch.setattr(progress_module, "LOG_EVERY_S", 0.05)
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: False)
+    with caplog.at_level(logging.INFO, logger="drapebench"):
+        for _ in progress_module.progress(range(6), desc="metrics", unit="frames"):
+            time.sleep(0.03)
+    lines = [r.getMessage() for r in caplog.records]
+    assert 1 <= len(lines) <= 4 and all(m.startswith("metrics: ") and "/6 frames" in m and " left (" in m for m in lines)
+    caplog.clear()
+    with caplog.at_level(logging.INFO, logger="drapebench"):
+        list(progress_module.progress(range(3), desc="short"))  # done before the first interval
+        monkeypatch.setenv("CI", "1")
+        for _ in progress_module.progress(range(3), desc="ci"):
+            time.sleep(0.03)
+    assert not caplog.records
+
+
+def test_prediction_h5_keeps_a_float64_drape_float64(tmp_path):
+    far = torch.full((3, 4, 3), 30000.0, dtype=torch.float64) + torch.rand(3, 4, 3, dtype=torch.float64) * 1e-3
+    write_prediction(tmp_path / "p64.h5", far, torch.tensor([[0, 1, 2]]))
+    v, _, _ = read_prediction(tmp_path / "p64.h5")
+    assert v.dtype == np.float64 and np.array_equal(v, far.numpy())  # float32 would round it to 2 mm
+    write_prediction(tmp_path / "p32.h5", far.float(), torch.tensor([[0, 1, 2]]))
+    assert read_prediction(tmp_path / "p32.h5")[0].dtype == np.float32

@@ -39,6 +39,19 @@ def matrix_to_axis_angle(R: torch.Tensor) -> torch.Tensor:
 LBS_CHUNK = 256  # frames skinned at once by lbs()
 
 
+def _blended(weights: torch.Tensor, transforms: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Per-point blended transforms (B, N, 3, 4) of the joint transforms (B, J, 4, 4) relative to each frame's
+    root translation o = transforms[:, 0, :3, 3], and o (B, 3): the translations are blended as offsets from o
+    (Σ_j w_j (t_j - o)) and o is added back whole, so a weight row that sums to 1 only within rounding moves no
+    point by that rounding times the distance from the origin."""
+    origin = transforms[:, 0, :3, 3]
+    A = transforms[..., :3, :].clone()  # (B,J,3,4)
+    A[..., 3] -= origin[:, None]
+    if weights.dim() == 2:
+        return torch.einsum("nj,bjkl->bnkl", weights, A), origin
+    return torch.einsum("bnj,bjkl->bnkl", weights, A), origin
+
+
 def lbs(points: torch.Tensor, weights: torch.Tensor, transforms: torch.Tensor) -> torch.Tensor:
     """Linear blend skinning of arbitrary points.
 
@@ -48,33 +61,35 @@ def lbs(points: torch.Tensor, weights: torch.Tensor, transforms: torch.Tensor) -
         transforms: (B, J, 4, 4) skinning transforms (global joint transform with the rest joint
             position removed, translation included), e.g. ``BodyOutput.transforms``.
     Returns:
-        (B, N, 3) skinned points. Frames are skinned in chunks of ``LBS_CHUNK`` (the per-point
-        blended transforms, 12 floats per point and frame, are never held for a whole long sequence).
+        (B, N, 3) skinned points, blended relative to each frame's root (:func:`_blended`), so exact to the
+        dtype's resolution at the body's scale however far from the origin. Frames are skinned in chunks of
+        ``LBS_CHUNK`` (the per-point blended transforms, 12 floats per point and frame, are never held for a
+        whole long sequence).
     """
     B = transforms.shape[0]
     if B > LBS_CHUNK:
         def part(t, a):  # the frames [a, a + LBS_CHUNK) of a per-frame input, a shared one as it is
             return t[a : a + LBS_CHUNK] if t.dim() == 3 and t.shape[0] == B else t
 
-        return torch.cat([lbs(part(points, a), part(weights, a), transforms[a : a + LBS_CHUNK]) for a in range(0, B, LBS_CHUNK)])
-    A = transforms[..., :3, :]  # (B,J,3,4)
-    if weights.dim() == 2:
-        T = torch.einsum("nj,bjkl->bnkl", weights, A)
-    else:
-        T = torch.einsum("bnj,bjkl->bnkl", weights, A)
+        chunks = (lbs(part(points, a), part(weights, a), transforms[a : a + LBS_CHUNK]) for a in range(0, B, LBS_CHUNK))
+        if torch.is_grad_enabled() and any(t.requires_grad for t in (points, weights, transforms)):
+            return torch.cat(list(chunks))
+        out = None  # filled chunk by chunk: no second copy of a long sequence's result
+        for a, x in zip(range(0, B, LBS_CHUNK), chunks):
+            out = x.new_empty((B, *x.shape[1:])) if out is None else out
+            out[a : a + len(x)] = x
+        return out
+    T, origin = _blended(weights, transforms)
     if points.dim() == 2:
         points = points.unsqueeze(0).expand(T.shape[0], -1, -1)
-    return torch.einsum("bnkl,bnl->bnk", T[..., :3], points) + T[..., 3]
+    return torch.einsum("bnkl,bnl->bnk", T[..., :3], points) + T[..., 3] + origin[:, None]
 
 
 def inverse_lbs(points: torch.Tensor, weights: torch.Tensor, transforms: torch.Tensor) -> torch.Tensor:
-    """Unpose points: invert the blended transform per point. Shapes as in :func:`lbs`."""
-    A = transforms[..., :3, :]
-    if weights.dim() == 2:
-        T = torch.einsum("nj,bjkl->bnkl", weights, A)
-    else:
-        T = torch.einsum("bnj,bjkl->bnkl", weights, A)
+    """Unpose points: invert the blended transform per point (relative to each frame's root, as :func:`lbs`).
+    Shapes as in :func:`lbs`."""
+    T, origin = _blended(weights, transforms)
     if points.dim() == 2:
         points = points.unsqueeze(0).expand(T.shape[0], -1, -1)
-    rhs = (points - T[..., 3]).unsqueeze(-1)
+    rhs = (points - origin[:, None] - T[..., 3]).unsqueeze(-1)
     return torch.linalg.solve(T[..., :3], rhs).squeeze(-1)

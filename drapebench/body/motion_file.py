@@ -202,8 +202,8 @@ def load_motion(path: str | Path, body, fps: float | None = None, betas=None, n_
 
 def motion_sequence(poses: np.ndarray, trans: np.ndarray, fps: float, body, betas, transition: int, name: str, motion: str,
                     params: dict, betas_source: str = "motion.betas") -> BodySequence:  # fmt: skip
-    """A test :class:`BodySequence` from poses (T, J, 3) axis-angle in the body's joint order and trans (T, 3) m at
-    ``fps`` Hz, with ``transition`` frames prepended that blend from the rest pose (pose 0, trans 0) into the first
+    """A test :class:`BodySequence` from poses (T, J, 3) axis-angle in the body's joint order and trans (T, 3) m (kept
+    in the body's dtype: a float64 run's root is exact far from the origin) at ``fps`` Hz, with ``transition`` frames prepended that blend from the rest pose (pose 0, trans 0) into the first
     frame (quintic smoothstep); betas padded by :meth:`BodyModel.full_betas` (None: mean shape). ``params["source"]``
     names the file in errors: fewer than 2 frames, a root faster than :data:`MAX_ROOT_SPEED` (centimetres), a first
     frame whose root the transition would have to lift faster than that, betas out of the body's range (named by
@@ -223,9 +223,9 @@ def motion_sequence(poses: np.ndarray, trans: np.ndarray, fps: float, body, beta
                          "stands at trans 0: subtract the floor's height (or give trans in metres)")  # fmt: skip
     s = smoothstep(np.arange(transition) / max(transition, 1))[:, None]
     poses = np.concatenate([s[..., None] * poses[:1], poses]).astype(np.float32)
-    trans = np.concatenate([s * trans[:1], trans]).astype(np.float32)
+    trans = np.concatenate([s * trans[:1], trans])
     full = body.full_betas(betas, note=True, key=betas_source).float().cpu()
     return BodySequence(
         name=name, motion=motion, betas=full, poses=torch.from_numpy(poses),
-        trans=torch.from_numpy(trans), fps=fps, split="test", n_transition=transition, params=params,
+        trans=torch.from_numpy(trans).to(body.dtype), fps=fps, split="test", n_transition=transition, params=params,
     )  # fmt: skip

@@ -30,7 +30,8 @@ def _key(kind: str, body: BodyModel) -> tuple:
 class BodySequence:
     """One body motion.
 
-    betas (S,) shape coefficients; poses (T, J, 3) axis-angle (radians); trans (T, 3) metres;
+    betas (S,) shape coefficients; poses (T, J, 3) axis-angle (radians); trans (T, 3) metres (float32, or
+    float64 when given as a float64 tensor: a float64 run's root, exact far from the origin);
     fps frames per second; ``n_transition`` leading frames blend from the rest pose into the motion.
     Posed geometry (:meth:`vertices`, :meth:`vertex_normals`, ...) is computed once per body and
     cached on the object.
@@ -56,7 +57,8 @@ class BodySequence:
             raise ValueError(f"{self.name}: betas must be (S,) shape coefficients, got {tuple(betas.shape)}")
         self.betas = betas
         self.poses = torch.as_tensor(self.poses, dtype=torch.float32)
-        self.trans = torch.as_tensor(self.trans, dtype=torch.float32)
+        wide = isinstance(self.trans, torch.Tensor) and self.trans.dtype == torch.float64  # a float64 run's, kept
+        self.trans = torch.as_tensor(self.trans, dtype=torch.float64 if wide else torch.float32)
         if self.poses.dim() != 3 or self.poses.shape[-1] != 3:
             raise ValueError(f"{self.name}: poses must be (T, J, 3), got {tuple(self.poses.shape)}")
         if self.trans.shape != (self.poses.shape[0], 3):

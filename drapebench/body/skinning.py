@@ -2,7 +2,7 @@
 
 A binding is each point's nearest vertex of the rest body of the shape the points were made on. From it
 come the points' skinning weights (the body's at that vertex), a shape transfer to another body shape
-(the body's shape blend shape at that vertex) and posed positions. Every function is batched over frames
+(the body's shape blend shape at that vertex); :func:`drapebench.body.lbs.lbs` poses them. Every function is batched over frames
 and differentiable in the points, the weights and the transforms.
 """
 
@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import torch
 
-from drapebench.body.lbs import lbs
 from drapebench.geometry.proximity import nearest_indices
 
 
@@ -36,12 +35,3 @@ def transfer_shape(points: torch.Tensor, index: torch.Tensor, body, betas_from, 
     dirs = body.shapedirs[index].to(points.dtype)  # (N, 3, S)
     return points + torch.einsum("vcs,s->vc", dirs, dbeta)
 
-
-def skin_then_translate(points: torch.Tensor, weights: torch.Tensor, transforms: torch.Tensor, trans: torch.Tensor) -> torch.Tensor:
-    """LBS with the joint transforms (B, J, 4, 4) minus the root translation ``trans`` (B, 3) m, then the
-    translation added (GAPS's order). Equal to :func:`lbs` when the weight rows sum to one; with learned,
-    unconstrained weights it keeps a row-sum drift from scaling the distance travelled into the points.
-    points (N, 3) or (B, N, 3), weights (N, J) or (B, N, J) -> (B, N, 3)."""
-    local = transforms.clone()
-    local[..., :3, 3] -= trans[..., None, :]
-    return lbs(points, weights, local) + trans[..., None, :]

@@ -27,7 +27,7 @@ from omegaconf import OmegaConf
 import methods
 from drapebench.body import load_body
 from drapebench.body.dataset import build_dataset
-from drapebench.body.skinning import skin_then_translate
+from drapebench.body.lbs import lbs
 from drapebench.cache import PROJECT_ROOT
 from drapebench.data import H5Sequences, TrainData
 from drapebench.diagnose import term_table
@@ -62,7 +62,7 @@ def diagnose(garment: str, body: str, budget: str = "cpu", epoch: int | None = N
     W = m.p["train"]["window"]
     with torch.no_grad():
         delta = torch.zeros(len(betas), W, 3 * g.n_vertices, dtype=b.dtype)
-        x = skin_then_translate(m._canonical(delta, betas).reshape(len(betas) * W, -1, 3), m.weights, out.transforms, tr.reshape(-1, 3))
+        x = lbs(m._canonical(delta, betas).reshape(len(betas) * W, -1, 3), m.weights, out.transforms)
     return term_table(lambda y: m._terms(y, out.vertices, normals, at.epoch), x)
 
 

@@ -14,7 +14,8 @@ import time
 import numpy as np
 import torch
 
-from drapebench.body.skinning import nearest_body_vertices, nearest_weights, skin_then_translate
+from drapebench.body.lbs import lbs
+from drapebench.body.skinning import nearest_body_vertices, nearest_weights
 from drapebench.cache import content_hash
 from drapebench.geometry.ops import ring_smooth, vertex_normals
 from drapebench.geometry.proximity import culled_body_vertices, nearest_body_vertex
@@ -194,7 +195,7 @@ class GAPS(DrapingMethod):
         h0 = torch.randn(p["layers"], B, p["hidden"], dtype=self.body.dtype, device=self.body.device) * p["train"]["hidden_init_std"]
         delta, _ = self.net(self._inputs(betas, pose, vel), h0)
         xc = self._canonical(delta, betas).reshape(B * W, -1, 3)
-        x = skin_then_translate(xc, self.weights, out.transforms, tr.reshape(B * W, 3))  # (B*W, V, 3)
+        x = lbs(xc, self.weights, out.transforms)  # (B*W, V, 3)
         return self._terms(x, out.vertices, normals, at.epoch)
 
     def _terms(self, x: torch.Tensor, body_vertices: torch.Tensor, body_normals: torch.Tensor, epoch: int, p: dict | None = None) -> dict:
@@ -254,7 +255,7 @@ class GAPS(DrapingMethod):
             t2 = time.perf_counter()
             xc = self._canonical(delta, betas)[0]
             del delta  # (T, 3V): freed before skinning, which holds another (T, V, 3)
-            x = skin_then_translate(xc, self.weights, transforms, seq.trans.to(xc.device, xc.dtype))
+            x = lbs(xc, self.weights, transforms)
             del xc
         t3 = time.perf_counter()
         ms = lambda a, b: (b - a) * 1e3  # noqa: E731
@@ -315,7 +316,7 @@ class GAPS(DrapingMethod):
 
     def skinned(self, delta: torch.Tensor, betas: torch.Tensor, seq) -> torch.Tensor:
         """The drape (T, V, 3) m of canonical displacements delta (1, T, 3V) m on ``seq`` with shape betas (1, S)."""
-        return skin_then_translate(self._canonical(delta, betas)[0], self.weights, seq.transforms(self.body), seq.trans.to(self.body.device, self.body.dtype))
+        return lbs(self._canonical(delta, betas)[0], self.weights, seq.transforms(self.body))
 
     # ------------------------------------------------------------------ state
     def state_dict(self) -> dict:

@@ -8,8 +8,9 @@ import time
 
 import torch
 
-from drapebench.body.lbs import lbs
+from drapebench.body.lbs import LBS_CHUNK, lbs
 from drapebench.body.skinning import nearest_body_vertices, nearest_weights, transfer_shape
+from drapebench.progress import progress
 from methods.base import DrapeResult, DrapingMethod, FitReport
 from methods.params import method_params
 
@@ -40,7 +41,10 @@ class LBSMethod(DrapingMethod):
             rest = transfer_shape(garment.vertices.to(self.body.dtype), idx, self.body, garment.betas, seq.betas)
             transforms = seq.transforms(self.body)
             t2 = time.perf_counter()
-            x = lbs(rest, nearest_weights(idx, self.body), transforms)
+            weights = nearest_weights(idx, self.body)
+            x = rest.new_empty((seq.n_frames, *rest.shape))
+            for a in progress(range(0, seq.n_frames, LBS_CHUNK), desc="lbs drape", unit="chunk"):
+                x[a : a + LBS_CHUNK] = lbs(rest, weights, transforms[a : a + LBS_CHUNK])
         t3 = time.perf_counter()
         ms = lambda a, b: (b - a) * 1e3  # noqa: E731
         return DrapeResult(x, {"weights": ms(t0, t1), "body": ms(t1, t2), "skinning": ms(t2, t3)})

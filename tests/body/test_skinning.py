@@ -1,7 +1,7 @@
 import torch
 
 from drapebench.body.lbs import lbs
-from drapebench.body.skinning import nearest_body_vertices, nearest_weights, skin_then_translate, transfer_shape
+from drapebench.body.skinning import nearest_body_vertices, nearest_weights, transfer_shape
 
 
 def test_body_vertices_bind_to_themselves(body_lowres):
@@ -21,14 +21,23 @@ def test_shape_transfer_moves_bound_body_vertices_with_the_body(body_lowres):
     assert torch.equal(transfer_shape(src, idx, body_lowres, b_from, b_from), src)
 
 
-def test_skin_then_translate_keeps_the_translation_out_of_the_weights(body_lowres):
-    seq_pose = torch.zeros(2, body_lowres.n_joints, 3)
+def test_lbs_keeps_the_root_translation_out_of_the_weights(body_lowres):
+    """Every joint's translation is blended relative to the frame's root and the root's added whole: weights whose rows
+    do not sum to 1 (learned ones, or float rounding) do not scale the distance travelled, and a body far from the
+    origin skins to the body at the origin, moved, to float64's resolution."""
+    pose = 0.3 * torch.randn(2, body_lowres.n_joints, 3)
     trans = torch.tensor([[0.0, 0.0, 0.0], [10.0, -3.0, 0.5]])
-    out = body_lowres.forward(None, seq_pose, trans)
+    out = body_lowres.forward(None, pose[:1].expand(2, -1, -1), trans)
     pts = body_lowres.v_template[:50]
     w = body_lowres.weights[:50]
-    assert torch.allclose(skin_then_translate(pts, w, out.transforms, trans), lbs(pts, w, out.transforms), atol=1e-5)
-    drifted = 1.1 * w  # rows sum to 1.1: plain LBS would scale the 10 m of travel too
-    x = skin_then_translate(pts, drifted, out.transforms, trans)
-    assert torch.allclose(x[1] - 1.1 * pts, trans[1].expand(50, 3), atol=1e-4)
-    assert not torch.allclose(lbs(pts, drifted, out.transforms)[1] - 1.1 * pts, trans[1].expand(50, 3), atol=1e-2)
+    drifted = 1.1 * w  # rows sum to 1.1: blending the translations whole would add 10 % of the 10 m travelled
+    x = lbs(pts, drifted, out.transforms)
+    assert torch.allclose(x[1] - x[0], trans[1].expand(50, 3), atol=1e-4)
+    from drapebench.body import load_body
+
+    body64 = load_body("anny_lowres", dtype=torch.float64)
+    far = torch.tensor([[30000.123456789, -12000.987654321, 7.0]], dtype=torch.float64)
+    w64 = body64.weights[:50] * (1 + 4e-8)  # rows off 1 by float32's rounding
+    here = lbs(pts.double(), w64, body64.forward(None, pose[1:].double(), None).transforms)
+    there = lbs(pts.double(), w64, body64.forward(None, pose[1:].double(), far).transforms)
+    assert (there - far - here).abs().max() < 1e-9  # m; blended whole: 30 km x 4e-8 = 1.2 mm
