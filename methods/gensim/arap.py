@@ -9,6 +9,7 @@ algorithm that this code takes are listed in ``methods/gensim/README.md``.
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -16,8 +17,12 @@ import torch
 
 from drapebench.body.lbs import lbs
 from drapebench.body.skinning import nearest_weights, transfer_shape
-from drapebench.geometry.arap import arap_solver
-from drapebench.geometry.proximity import body_vertex_tree, nearest_body_vertex, nearest_indices
+from drapebench.geometry.arap import BACKENDS, arap_solver
+from drapebench.geometry.proximity import body_vertex_tree, nearest_indices
+from drapebench.geometry.sdf import closest_body_point
+
+CONTACTS = ("surface", "vertex")
+WARP_LOCK = threading.Lock()  # drapebench.geometry.body_bvh keeps one warp mesh per body: threads draping frames at once take turns on it
 
 
 @dataclass(frozen=True)
@@ -30,7 +35,12 @@ class ArapConfig:
     min_motion: body motion (m) below which a vertex is no handle (its direction is undefined);
     handle_smoothing: rounds of averaging each non-pin handle's move (target - template) with its handle
     neighbours' (0: Alg. 2 as printed, every handle placed on its own); push_smoothing: rounds of spreading
-    the collision push (Alg. 1 line 10) to the free neighbours of pushed vertices (0: as printed)."""
+    the collision push (Alg. 1 line 10) to the free neighbours of pushed vertices (0: as printed);
+    solver: the ARAP backend of :func:`drapebench.geometry.arap.arap_solver` ("sparse" or "libigl");
+    contact: what the push (Alg. 1 line 10) finds inside the body and moves out: "surface" (the signed
+    distance to the body's outer surface, inside by the whole body's winding number, as eps_c counts it;
+    a vertex moves onto its closest surface point) or "vertex" (the nearest body vertex's normal distance,
+    a vertex moves onto that vertex's tangent plane)."""
 
     eps: float = -0.5
     handle_side: str = "pushed"
@@ -40,12 +50,18 @@ class ArapConfig:
     min_motion: float = 1e-4
     handle_smoothing: int = 0
     push_smoothing: int = 0
+    solver: str = "sparse"
+    contact: str = "vertex"
 
     def __post_init__(self):
         if self.handle_side not in ("pushed", "printed"):
             raise ValueError(f"gensim handle_side must be 'pushed' or 'printed', not {self.handle_side!r}")
         if self.pin_rule not in ("skinned", "normal"):
             raise ValueError(f"gensim pin_rule must be 'skinned' or 'normal', not {self.pin_rule!r}")
+        if self.solver not in BACKENDS:
+            raise ValueError(f"gensim arap_solver must be one of {BACKENDS}, not {self.solver!r}")
+        if self.contact not in CONTACTS:
+            raise ValueError(f"gensim contact must be one of {CONTACTS}, not {self.contact!r}")
         if self.handle_smoothing < 0 or self.push_smoothing < 0:
             raise ValueError("gensim handle_smoothing and push_smoothing must be >= 0")
         if self.n_iterations < 1 or self.arap_iterations < 1:
@@ -114,36 +130,70 @@ def handle_targets(binding: Binding, template, canonical_body, target_body, targ
     return handles | binding.pin, targets, d
 
 
-def motion_aware_arap(template, faces, handles, targets, target_body, target_normals, cfg: ArapConfig, candidates=None) -> torch.Tensor:
+def motion_aware_arap(template, faces, handles, targets, target_body, target_normals, cfg: ArapConfig, candidates=None,
+                      body_faces=None, outer_faces=None) -> torch.Tensor:  # fmt: skip
     """Alg. 1: (V, 3) deformed garment. Handles (V,) bool move from the template (V, 3) to ``targets``
     (V, 3) in ``cfg.n_iterations`` equal steps; after each ARAP solve the non-handle vertices inside the
-    front-aligned target body (nearest body vertex normal distance zeta <= 0) move out by |zeta| along
-    the normal."""
+    front-aligned target body (Vb, 3) move out (``cfg.contact``: onto the closest point of the body's
+    surface, which needs ``body_faces`` (Fb, 3) and its ``outer_faces`` (Fb,) bool; or by the nearest body
+    vertex's normal distance zeta <= 0 along its normal (``target_normals`` (Vb, 3), body vertices
+    restricted to ``candidates``))."""
     idx = torch.nonzero(handles).squeeze(1)
-    solver = arap_solver(template, faces, idx, cfg.arap_iterations)
-    start, goal = template[idx].double(), targets[idx].double()
-    free = ~handles
+    solver = arap_solver(template, faces, idx, cfg.arap_iterations, cfg.solver)
+    start, goal = template[idx].double().numpy(), targets[idx].double().numpy()
+    free_mask = (~handles).numpy()
+    free = np.nonzero(free_mask)[0]
     if cfg.push_smoothing:
         f = torch.as_tensor(faces).long()
         edges = torch.unique(torch.cat([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]).sort(dim=1).values, dim=0)
-    body, body_normals = target_body[None].double(), target_normals[None].double()
-    tree = body_vertex_tree(body[0], candidates)  # one search structure for the frame's 10 steps
+    contact = body_contact(target_body, target_normals, cfg.contact, candidates, body_faces, outer_faces)
     G = template.double().numpy()
     for k in range(1, cfg.n_iterations + 1):
-        S = start + (goal - start) * (k / cfg.n_iterations)
-        G = solver.solve(S.numpy(), G)
-        x = torch.from_numpy(G)
-        nn = nearest_body_vertex(x[free][None], body, body_normals, candidates, tree)
-        zeta, n = nn.distance[0], nn.normal[0]
-        push = torch.zeros_like(x)
-        push[free] = torch.where((zeta <= 0)[:, None], -zeta[:, None] * n, torch.zeros_like(n))
-        inside = torch.zeros(len(x), dtype=torch.bool, device=x.device)
-        inside[torch.nonzero(free).squeeze(1)[zeta <= 0]] = True
-        for _ in range(cfg.push_smoothing):  # free neighbours of a pushed vertex follow part of its push
-            spread = neighbour_mean(push, edges, free)
-            push = torch.where(inside[:, None], push, torch.where(free[:, None], spread, push))
-        G = (x + push).numpy()
+        G = solver.solve(start + (goal - start) * (k / cfg.n_iterations), G)
+        zeta, n = contact(G[free])
+        inside = zeta <= 0
+        push = np.zeros_like(G)
+        push[free[inside]] = -zeta[inside, None] * n[inside]
+        if cfg.push_smoothing:  # free neighbours of a pushed vertex follow part of its push
+            pushed = torch.zeros(len(G), dtype=torch.bool)
+            pushed[torch.from_numpy(free[inside])] = True
+            push_t, free_t = torch.from_numpy(push), torch.from_numpy(free_mask)
+            for _ in range(cfg.push_smoothing):
+                spread = neighbour_mean(push_t, edges, free_t)
+                push_t = torch.where(pushed[:, None], push_t, torch.where(free_t[:, None], spread, push_t))
+            push = push_t.numpy()
+        G = G + push
     return torch.from_numpy(np.ascontiguousarray(G)).to(template.dtype)
+
+
+def body_contact(body, normals, contact: str, candidates=None, body_faces=None, outer_faces=None):
+    """A function of points (N, 3) float64 returning their signed distance zeta (N,) m to one body frame
+    (Vb, 3) (negative inside) and the unit direction (N, 3) along which -zeta moves a point out: the
+    body's outer surface (``contact`` "surface": ``body_faces`` (Fb, 3), ``outer_faces`` (Fb,) bool, the
+    sign the whole body's winding number, :func:`drapebench.geometry.sdf.closest_body_point`) or the nearest
+    body vertex (among ``candidates``) with its ``normals`` (Vb, 3) ("vertex": one k-d tree for the frame)."""
+    if contact == "surface":
+        if body_faces is None:
+            raise ValueError("gensim contact 'surface' needs the body's faces (and outer_faces)")
+        verts = body[None].double()
+
+        def surface(points: np.ndarray):
+            with WARP_LOCK:
+                sp = closest_body_point(torch.from_numpy(points)[None], verts, body_faces, outer_faces=outer_faces)
+            return sp.distance[0].numpy(), sp.normal[0].numpy()
+
+        return surface
+    tree = body_vertex_tree(body.double(), candidates)
+    cand = None if candidates is None else torch.as_tensor(candidates).long().numpy()
+    verts, norms = body.double().numpy(), normals.double().numpy()
+
+    def vertex(points: np.ndarray):
+        i = tree.query(points, workers=1)[1]
+        i = i if cand is None else cand[i]
+        n = norms[i]
+        return ((points - verts[i]) * n).sum(-1), n
+
+    return vertex
 
 
 def front_aligned(body, betas: torch.Tensor, poses: torch.Tensor):

@@ -51,6 +51,11 @@ METHOD_DEFAULTS = dict(
     arap_iterations=2,  # local-global ARAP iterations per step
     handle_smoothing=0,  # rounds of averaging a handle's move with its handle neighbours' (0: Alg. 2 as printed)
     push_smoothing=0,  # rounds of spreading the collision push to free neighbours (0: Alg. 1 line 10 as printed)
+    arap_solver="sparse",  # the ARAP backend: sparse (scipy, prefactored; drapebench.geometry.arap) | libigl (the same frame within micrometres)
+    contact="surface",  # Eq. 8's distance and Alg. 1's push: surface (signed distance to the body's outer surface, as eps_c counts) | vertex (nearest body vertex and its normal)
+    pen_compile=False,  # run PEN under torch.compile at inference (compiled once per process, tens of seconds)
+    pen_precision="fp32",  # PEN's inference arithmetic: fp32 | bf16 (CPU autocast; moves the drape by well under a millimetre, README)
+    workers=2,  # frames draped at once (threads; each runs torch single-threaded): 1 = frame by frame on torch's threads
     collision_eps=0.003,  # eps_coll (Eq. 8)
     bending_rest="flat",  # flat (Eq. 4: theta^2) | template
     fabric_mean=None,  # mu_fabric (m); None: fitted by methods.gensim.fabric (cached)
@@ -62,7 +67,10 @@ METHOD_DEFAULTS = dict(
     supervised=False,  # gensim_l2: L2 to reference drapes + smoothness + collision (paper Table 2)
     train=TRAIN_DEFAULTS,
 )
-CHOICES = dict(stage=("full", "arap"), decoder=("local", "eq1"), decoder_init=("default", "zero"), normal_part=("abs", "softplus", "relu", "square"), body_query=("vertex", "surface"), restrain_reduction=("mean", "sum"), restrain_offset=("dead_zone", "printed", "none"), direction=("tangent", "paper"), handle_side=("pushed", "printed"), pin_rule=("skinned", "normal"), bending_rest=("flat", "template"))
+CHOICES = dict(stage=("full", "arap"), decoder=("local", "eq1"), decoder_init=("default", "zero"), normal_part=("abs", "softplus", "relu", "square"), body_query=("vertex", "surface"), restrain_reduction=("mean", "sum"), restrain_offset=("dead_zone", "printed", "none"), direction=("tangent", "paper"), handle_side=("pushed", "printed"), pin_rule=("skinned", "normal"), bending_rest=("flat", "template"),
+               arap_solver=("sparse", "libigl"), contact=("surface", "vertex"), pen_precision=("fp32", "bf16"))  # fmt: skip
+INFERENCE_KEYS = ("arap_solver", "pen_compile", "pen_precision", "workers")  # how a drape is computed, not what is trained: outside the checkpoint's key
+ADDED_KEYS = dict(contact="vertex")  # keys newer than some checkpoints, at the behaviour those were trained with
 
 
 def gensim_params(cfg: Mapping[str, Any] | None) -> dict:
@@ -82,6 +90,8 @@ def gensim_params(cfg: Mapping[str, Any] | None) -> dict:
     if not motions or unknown:
         raise ValueError(f"gensim: method.params.train.motions must name training motions ({', '.join(('random', *TRAIN_MOTIONS))}), "
                          f"not {unknown or 'none'}; the held-out ones ({', '.join(HELD_OUT_MOTIONS)}) are the test")  # fmt: skip
+    if int(p["workers"]) < 1:
+        raise ValueError(f"gensim workers must be >= 1, got {p['workers']}")
     if p["train"]["threads"] is not None and int(p["train"]["threads"]) < 1:
         raise ValueError(f"gensim train.threads must be >= 1 or null, got {p['train']['threads']}")
     return p

@@ -10,6 +10,7 @@ import torch
 
 from drapebench.geometry.ops import edge_lengths
 from drapebench.geometry.proximity import nearest_body_vertex
+from drapebench.geometry.sdf import closest_body_point
 from drapebench.physics import (
     bending_energy,
     gravity_energy,
@@ -66,8 +67,19 @@ def l2(x, reference, weight: float) -> torch.Tensor:
     return weight * ((x - reference) ** 2).sum(-1).sum(-1).mean()
 
 
-def collision(x, body_vertices, body_normals, eps: float, weight: float, candidates=None) -> torch.Tensor:
-    """Eq. 8 (hinge reading): sum over vertices of max(eps - n . (x - B_nu), 0) with B_nu the body vertex
-    closest to each predicted vertex and n its unit normal; body_vertices/normals (B, Vb, 3)."""
-    nn = nearest_body_vertex(x, body_vertices, body_normals, candidates)
-    return weight * hinge_collision_energy(x, nn.point, nn.normal, eps).mean()
+def collision(x, body_vertices, body_normals, eps: float, weight: float, candidates=None, contact: str = "vertex", body_faces=None,
+              outer_faces=None) -> torch.Tensor:  # fmt: skip
+    """Eq. 8 (hinge reading): sum over vertices of max(eps - d, 0) with d the signed distance of each predicted
+    vertex to the body (B, Vb, 3): ``contact`` "surface" the exact one to the closest point of the body's outer
+    surface (``body_faces`` (Fb, 3), ``outer_faces`` (Fb,) bool; negative inside the whole body, as eps_c
+    counts it; gradient along the closest point's direction), "vertex" n . (x - B_nu) with B_nu the nearest
+    body vertex (among ``candidates``) and n its unit normal (``body_normals`` (B, Vb, 3))."""
+    if contact == "surface":
+        sp = closest_body_point(x.detach(), body_vertices.detach(), body_faces, outer_faces=outer_faces)
+        point, normal = sp.point, sp.normal
+    elif contact == "vertex":
+        nn = nearest_body_vertex(x, body_vertices, body_normals, candidates)
+        point, normal = nn.point, nn.normal
+    else:
+        raise ValueError(f"gensim contact must be 'surface' or 'vertex', not {contact!r}")
+    return weight * hinge_collision_energy(x, point, normal, eps).mean()

@@ -22,12 +22,11 @@ from drapebench.progress import progress
 from drapebench.train import Objective, train, train_config
 from methods.base import DrapeResult, DrapingMethod, FitReport
 from methods.gensim import losses
-from methods.gensim.arap import ArapConfig, Binding, bind, front_aligned, handle_targets, motion_aware_arap, skinned_template
-from methods.gensim.config import gensim_params
+from methods.gensim.arap import WARP_LOCK, ArapConfig, Binding, bind, front_aligned, handle_targets, motion_aware_arap, skinned_template
+from methods.gensim.config import ADDED_KEYS, INFERENCE_KEYS, gensim_params
 from methods.gensim.network import PEN
 
 log = logging.getLogger("drapebench")
-PEN_CHUNK = 1  # frames per PEN pass at inference (larger batches are memory-bound on the CPU: measured slower per frame)
 FRAMES = Cache("gensim", 4)  # the ARAP stage of the training frames
 
 
@@ -99,8 +98,10 @@ class GenSim(DrapingMethod):
         super().__init__(cfg)
         self.p = gensim_params(self.cfg)
         self.arap = ArapConfig(self.p["eps"], self.p["handle_side"], self.p["pin_rule"], self.p["arap_steps"], self.p["arap_iterations"],
-                               handle_smoothing=self.p["handle_smoothing"], push_smoothing=self.p["push_smoothing"])  # fmt: skip
+                               handle_smoothing=self.p["handle_smoothing"], push_smoothing=self.p["push_smoothing"], solver=self.p["arap_solver"],
+                               contact=self.p["contact"])  # fmt: skip
         self.net = None
+        self._compiled = None
         self.fabric = None
 
     # ------------------------------------------------------------------ the two stages
@@ -113,23 +114,32 @@ class GenSim(DrapingMethod):
         """ARAP-deformed garment (T, V, 3), handle masks (T, V) bool and body motion d (T, V, 3), all in the
         front-aligned frame, for a body shape ``betas`` (S,) and poses (T, J, 3); plus the aligned bodies
         (T, Vb, 3), their normals and skinning transforms (T, J, 4, 4); all on the body's device."""
+        inputs = self.arap_inputs(graph, betas, poses)
+        G, H, D = zip(*(self.arap_frame(inputs, t) for t in range(len(poses))))
+        return *(torch.stack(a).to(self.body.device) for a in (G, H, D)), *inputs[-3:]
+
+    def arap_inputs(self, graph: GarmentGraph, betas: torch.Tensor, poses: torch.Tensor) -> tuple:
+        """What :meth:`arap_frame` reads, for all frames at once, on the CPU (the ARAP solve and its body queries
+        run there: the frames' inputs go there once): the garment graph, the canonical body (Vb, 3), the
+        front-aligned bodies (T, Vb, 3), their normals and the skinned pins (T, V, 3); then on the body's device
+        the front-aligned bodies, their normals and skinning transforms (T, J, 4, 4)."""
         body = self.body
         verts, transforms = front_aligned(body, betas.to(body.device), poses.to(body.device, body.dtype))
         normals = vertex_normals(verts, body.faces)
         with torch.no_grad():
             canonical = body.shaped(graph.betas[None, : body.n_betas])[0][0]
             pins_at = skinned_template(graph.template, graph.binding, body, graph.betas, betas, transforms)
-        # The ARAP solve (libigl) and its k-d tree run on the CPU: the frames' inputs go there once, the results come back once.
-        host = graph.to("cpu")
-        canonical_h, verts_h, normals_h, pins_h = (t.cpu() for t in (canonical, verts, normals, pins_at))
-        G, H, D = [], [], []
-        for t in range(len(poses)):
-            handles, targets, d = handle_targets(host.binding, host.template, canonical_h, verts_h[t], normals_h[t], pins_h[t], self.arap,
-                                              host.topology.edges)  # fmt: skip
-            G.append(motion_aware_arap(host.template, host.topology.faces, handles, targets, verts_h[t], normals_h[t], self.arap))
-            H.append(handles)
-            D.append(d)
-        return *(torch.stack(a).to(body.device) for a in (G, H, D)), verts, normals, transforms
+        return (graph.to("cpu"), *(t.cpu() for t in (canonical, verts, normals, pins_at)), verts, normals, transforms)
+
+    def arap_frame(self, inputs: tuple, t: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Frame t of the ARAP stage from :meth:`arap_inputs`, on the CPU: deformed garment (V, 3), handle mask (V,)
+        and d (V, 3)."""
+        host, canonical, verts, normals, pins_at = inputs[:5]
+        handles, targets, d = handle_targets(host.binding, host.template, canonical, verts[t], normals[t], pins_at[t], self.arap,
+                                             host.topology.edges)  # fmt: skip
+        G = motion_aware_arap(host.template, host.topology.faces, handles, targets, verts[t], normals[t], self.arap,
+                              body_faces=self.body.faces.cpu(), outer_faces=self.body.outer_faces.cpu())  # fmt: skip
+        return G, handles, d
 
     def features(self, graph: GarmentGraph, G, d, body_vertices, body_normals):
         """PEN's inputs for ARAP results G (B, V, 3) with body motion d (B, V, 3) on front-aligned bodies (B, Vb, 3)
@@ -156,17 +166,22 @@ class GenSim(DrapingMethod):
         if self.p["body_query"] == "vertex":
             nn = nearest_body_vertex(G, body_vertices, body_normals)
             return nn.point, nn.normal
-        sp = closest_body_point(G, body_vertices, self.body.faces, outer_faces=self.body.outer_faces)
+        with WARP_LOCK:
+            sp = closest_body_point(G, body_vertices, self.body.faces, outer_faces=self.body.outer_faces)
         return sp.point, sp.normal
 
-    def pen(self, graph: GarmentGraph, G, d, body_vertices, body_normals, betas, geometry=None) -> tuple[torch.Tensor, torch.Tensor]:
+    def pen(self, graph: GarmentGraph, G, d, body_vertices, body_normals, betas, geometry=None, inference: bool = False) -> tuple[torch.Tensor, torch.Tensor]:
         """PEN's corrected garment G + delta (B, V, 3) and delta, for ARAP results G (B, V, 3), body motion
         d (B, V, 3), front-aligned bodies (B, Vb, 3) with normals, and body shapes betas (B, S);
-        ``geometry``: :meth:`encode` of the garment and body shape when already computed."""
+        ``geometry``: :meth:`encode` of the garment and body shape when already computed; ``inference``: as a drape
+        runs it (``pen_compile``, ``pen_precision``), else eager in the model's dtype (training)."""
         node, edge, normal = self.features(graph, G, d, body_vertices, body_normals)
         geometry = self.encode(graph, betas) if geometry is None else geometry
         index = graph.binding.nu[None].expand(G.shape[0], -1)  # each vertex's canonical closest body vertex: its body feature
-        delta, _ = self.net(node, edge, graph.senders, graph.receivers, graph.template, None, index, normal, geometry)
+        net = self.inference_net() if inference else self.net
+        with torch.autocast("cpu", torch.bfloat16, enabled=inference and self.p["pen_precision"] == "bf16"):
+            delta, _ = net(node, edge, graph.senders, graph.receivers, graph.template, None, index, normal, geometry)
+        delta = delta.to(G.dtype)
         return G + delta, delta
 
     def input_statistics(self, n_items: int = 64) -> tuple[torch.Tensor, ...]:
@@ -191,9 +206,9 @@ class GenSim(DrapingMethod):
 
     # ------------------------------------------------------------------ training
     def settings_key(self) -> dict:
-        """The resolved parameters (code defaults included): a changed default retrains instead of loading a
-        checkpoint trained with the old one."""
-        return self.p
+        """The resolved parameters (code defaults included) but the inference-only ones: a changed default retrains
+        instead of loading a checkpoint trained with the old one."""
+        return {k: v for k, v in self.p.items() if k not in INFERENCE_KEYS}
 
     def trained_body(self, run_body):
         """``method.params.train.body`` when set (PEN's features do not depend on the body mesh, so the
@@ -347,7 +362,8 @@ class GenSim(DrapingMethod):
             "pin": lambda: losses.pin(x, G, graph.pins, w["pin"]),
             "potential": lambda: losses.potential(x, topo, mat, ~graph.pin_mask, w["potential"]),
             "smoothness": lambda: losses.smoothness(x, topo, w["smoothness"]),
-            "collision": lambda: losses.collision(x, body_vertices, body_normals, self.p["collision_eps"], w["collision"]),
+            "collision": lambda: losses.collision(x, body_vertices, body_normals, self.p["collision_eps"], w["collision"], contact=self.p["contact"],
+                                                  body_faces=self.body.faces, outer_faces=self.body.outer_faces),  # fmt: skip
             "l2": lambda: losses.l2(x, reference, w["l2"]),
         }
         names = losses.SUPERVISED if self.p["supervised"] else losses.UNSUPERVISED
@@ -355,8 +371,11 @@ class GenSim(DrapingMethod):
 
     # ------------------------------------------------------------------ inference
     def drape(self, garment, seq) -> DrapeResult:
-        """Each frame: ARAP on the front-aligned body, PEN (batched over frames), then the root rotation and
-        translation put back. ``extras`` holds the ARAP stage (T, V, 3) and its handle masks (T, V)."""
+        """Each frame: ARAP on the front-aligned body, PEN, then the root rotation and translation put back;
+        ``workers`` frames at once (threads, torch single-threaded in each). ``extras`` holds the ARAP stage
+        (T, V, 3) and its handle masks (T, V). ``timings_ms`` splits the wall time of the frames between
+        "arap" and "pen" in proportion to the two stages' summed time over the frames (with the bodies and pins
+        of every frame in "arap", PEN's geometry encoding in "pen")."""
         self._require_bound()
         if self.net is None and self.p["stage"] == "full":
             raise RuntimeError("gensim: not trained; call fit() or load_state_dict() first")
@@ -364,24 +383,58 @@ class GenSim(DrapingMethod):
         graph = garment_graph(garment, self.body, self.material)
         betas = self.sequence_shape(seq)
         t1 = time.perf_counter()
-        G, H, D, verts, normals, _ = self.arap_stage(graph, betas, seq.poses)
-        t2 = time.perf_counter()
-        if self.p["stage"] == "arap":
-            x = G
+        inputs = self.arap_inputs(graph, betas, seq.poses)
+        full = self.p["stage"] == "full"
+        t_inputs = time.perf_counter()
+        with torch.inference_mode():
+            geometry = self.encode(graph, betas[None]) if full else None  # one garment and body shape for the whole drape
+        t_encode = time.perf_counter()
+        verts, normals = inputs[1], inputs[2]
+
+        def frame(t: int):
+            a = time.perf_counter()
+            G, H, D = self.arap_frame(graph, inputs, t)
+            b = time.perf_counter()
+            if full:
+                with torch.inference_mode():
+                    x = self.pen(graph, G[None], D[None], verts[t : t + 1], normals[t : t + 1], betas[None], geometry, inference=True)[0][0]
+            c = time.perf_counter()
+            return (x if full else G), G, H, b - a, c - b
+
+        t_frames = time.perf_counter()
+        workers = min(int(self.p["workers"]), seq.n_frames)
+        if workers > 1:
+            from concurrent.futures import ThreadPoolExecutor
+
+            threads = torch.get_num_threads()
+            torch.set_num_threads(1)
+            try:
+                with ThreadPoolExecutor(workers) as pool:
+                    out = list(pool.map(frame, range(seq.n_frames)))
+            finally:
+                torch.set_num_threads(threads)
         else:
-            xs = []
-            with torch.inference_mode():
-                geometry = self.encode(graph, betas[None])  # one garment and body shape for the whole drape
-                for s in range(0, seq.n_frames, PEN_CHUNK):
-                    e = min(seq.n_frames, s + PEN_CHUNK)
-                    xs.append(self.pen(graph, G[s:e], D[s:e], verts[s:e], normals[s:e], betas[None].expand(e - s, -1), geometry)[0])
-            x = torch.cat(xs)
-        t3 = time.perf_counter()
+            out = [frame(t) for t in range(seq.n_frames)]
+        t2 = time.perf_counter()
+        x, G = torch.stack([o[0] for o in out]), torch.stack([o[1] for o in out])
+        H = torch.stack([o[2] for o in out])
         x, G = self.to_world(seq, x, G)
-        t4 = time.perf_counter()
+        t3 = time.perf_counter()
+        arap_s, pen_s = sum(o[3] for o in out), sum(o[4] for o in out)
+        share = arap_s / max(arap_s + pen_s, 1e-12)
         ms = lambda a, b: (b - a) * 1e3  # noqa: E731
-        extras = {"arap": G, "handles": H} if self.p["stage"] == "full" else {"handles": H}
-        return DrapeResult(x.clone(), {"setup": ms(t0, t1), "arap": ms(t1, t2), "pen": ms(t2, t3), "pose": ms(t3, t4)}, extras)
+        extras = {"arap": G, "handles": H} if full else {"handles": H}
+        timings = {"setup": ms(t0, t1), "arap": ms(t1, t_inputs) + ms(t_frames, t2) * share,
+                   "pen": ms(t_inputs, t_frames) + ms(t_frames, t2) * (1 - share), "pose": ms(t2, t3)}  # fmt: skip
+        return DrapeResult(x.clone(), timings, extras)
+
+    def inference_net(self):
+        """PEN as inference runs it: under torch.compile with ``pen_compile`` (compiled once, on first use)."""
+        if not self.p["pen_compile"]:
+            return self.net
+        if self._compiled is None or self._compiled[0] is not self.net:
+            self._compiled = (self.net, torch.compile(self.net, dynamic=True))
+        return self._compiled[1]
 
     def sequence_shape(self, seq) -> torch.Tensor:
         """(S,) the body shape of ``seq`` in the body's betas (zeros where the sequence gives fewer)."""
@@ -420,8 +473,10 @@ class GenSim(DrapingMethod):
     def load_state_dict(self, state) -> None:
         if not state:
             return
-        if state["params"] != self.p:
-            raise ValueError(f"gensim checkpoint was trained with {state['params']}, not {self.p}")
+        model = self.settings_key()
+        trained = {**ADDED_KEYS, **{k: v for k, v in state["params"].items() if k not in INFERENCE_KEYS}}  # a key added later: its old behaviour
+        if trained != model:
+            raise ValueError(f"gensim checkpoint was trained with {trained}, not {model}")
         self._require_bound()
         self.net = self._new_net()
         self.net.load_state_dict(state["net"])

@@ -281,6 +281,45 @@ def test_collision_term_pushes_an_inside_vertex_out_along_the_normal():
     assert losses.collision(outside, body, normals, 0.003, 100.0) == 0
 
 
+def _cube():
+    """A closed, outward-oriented cube [-1, 1]^3 (8 vertices, 12 faces) with its vertex normals: a coarse body
+    whose nearest vertex (a corner) says little about a point near the middle of a face."""
+    v = torch.tensor([[x, y, z] for x in (-1.0, 1.0) for y in (-1.0, 1.0) for z in (-1.0, 1.0)])
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]  # -x, +x, -y, +y, -z, +z
+    f = torch.tensor([t for a, b, c, d in quads for t in ((a, b, c), (a, c, d))])
+    return v, f, vertex_normals(v[None], f)[0]
+
+
+def test_surface_contact_measures_the_penetration_through_a_face_not_the_nearest_vertex():
+    v, f, n = _cube()
+    inside = torch.tensor([[[0.0, 0.1, 0.99]]], requires_grad=True)  # 1 cm under the middle of the top face
+    outside = torch.tensor([[[0.0, 0.1, 1.01]]])  # 1 cm above it: the nearest corner's tangent plane puts it 1.1 m deep
+    value = losses.collision(inside, v[None], n[None], 0.003, 100.0, contact="surface", body_faces=f)
+    assert torch.isclose(value, torch.tensor(100.0 * (0.003 + 0.01)), rtol=1e-5)
+    value.backward()
+    assert inside.grad[0, 0, 2] < 0 and inside.grad[0, 0, :2].abs().max() < 1e-6  # descent: straight up, out of the face
+    assert losses.collision(outside, v[None], n[None], 0.003, 100.0, contact="surface", body_faces=f) == 0
+    assert losses.collision(outside, v[None], n[None], 0.003, 100.0, contact="vertex") > 50.0  # the proxy, labelled
+
+
+def test_the_arap_push_moves_an_inside_vertex_onto_the_body_surface():
+    v, f, n = _cube()
+    template = torch.tensor([[0.0, 0.0, 0.99], [0.1, 0.0, 0.99], [0.0, 0.1, 0.99], [0.1, 0.1, 0.99]])  # 1 cm inside the top face
+    faces = torch.tensor([[0, 1, 3], [0, 3, 2]])
+    handles = torch.tensor([True, False, False, False])
+    cfg = ArapConfig(n_iterations=2, contact="surface")
+    x = motion_aware_arap(template, faces, handles, template, v, n, cfg, body_faces=f, outer_faces=torch.ones(len(f), dtype=torch.bool))
+    assert torch.allclose(x[1:, 2], torch.ones(3), atol=1e-6)  # onto the face
+    assert (x[1:, :2] - template[1:, :2]).abs().max() < 2e-3  # straight up (the ARAP solve keeps the square's shape)
+    proxy = motion_aware_arap(template, faces, handles, template, v, n, ArapConfig(n_iterations=2, contact="vertex"))
+    assert (proxy[1:, :2] - template[1:, :2]).abs().max() > 0.05  # along the corners' normals
+
+
+def test_gensim_rejects_an_unknown_contact():
+    with pytest.raises(ValueError, match="contact"):
+        methods.get("gensim")({"contact": "nearest"})
+
+
 def test_bending_and_smoothness_are_zero_on_a_flat_sheet_and_positive_when_folded():
     verts, topo = _sheet(4, 0.3)
     mat = Material()
