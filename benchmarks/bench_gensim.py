@@ -35,6 +35,7 @@ ROOT = Path(__file__).resolve().parents[1]
 CONFIGS = {  # name: method.params of the configuration
     "default": {},
     "one worker": {"workers": 1},
+    "vertex contact": {"contact": "vertex"},
     "compiled": {"pen_compile": True},
     "compiled bf16": {"pen_compile": True, "pen_precision": "bf16"},
 }
@@ -110,6 +111,7 @@ def main():
         for _ in range(args.rounds):
             for name, tree, params, threads in rows:
                 r = run_config(tree, params, args.runs, args.frames, threads)
+                print(f"  ({name}: {r['ms']:.1f} ms/frame, {r['core_ms']:.1f} core-ms/frame, load {os.getloadavg()[0]:.1f})", flush=True)
                 if name not in best or r["ms"] < best[name]["ms"]:
                     best[name] = r
         print(f"load average after: {os.getloadavg()[0]:.2f} (1 min)")

@@ -5,11 +5,13 @@ rotation fits every edge of the triangles around it, cotangent weights), same in
 
 - :class:`SparseArapSolver` (backend ``"sparse"``): scipy. The covariance of every vertex and the global
   step's right-hand side are fixed sparse maps of the positions and of the rotations (built once per rest
-  mesh), the rotations come from a vectorised closed form (:func:`best_rotations`, exact in float64), and the global step is a sparse LU of the free block of the
-  cotangent Laplacian, factorized once per handle set. It releases the GIL in its large steps.
+  mesh, :class:`ArapMesh`), the rotations come from a vectorised closed form (:func:`best_rotations`, exact
+  in float64), and the global step is a sparse LU of the free block of the cotangent Laplacian, factorized
+  once per handle set.
 - :class:`ArapSolver` (backend ``"libigl"``): ``igl.arap_precomputation`` / ``igl.arap_solve``. Its
   rotations come from a single-precision 3x3 SVD (McAdams et al.), so the two differ by that SVD's error:
-  a few micrometres on a garment (``tests/geometry/test_arap.py``).
+  a few micrometres on average on a garment, up to tens at vertices of near-planar 1-rings
+  (``tests/geometry/test_arap.py``).
 
 :func:`arap_solver` keeps the last few factorizations, keyed by content, so a handle set that comes back
 (a static scene, a repeated frame) is not factorized again.

@@ -40,7 +40,7 @@ class ArapConfig:
     contact: what the push (Alg. 1 line 10) finds inside the body and moves out: "surface" (the signed
     distance to the body's outer surface, inside by the whole body's winding number, as eps_c counts it;
     a vertex moves onto its closest surface point) or "vertex" (the nearest body vertex's normal distance,
-    a vertex moves onto that vertex's tangent plane)."""
+    a vertex moves onto that vertex's tangent plane); push_margin (m): how far beyond that the push moves it."""
 
     eps: float = -0.5
     handle_side: str = "pushed"
@@ -52,6 +52,7 @@ class ArapConfig:
     push_smoothing: int = 0
     solver: str = "sparse"
     contact: str = "vertex"
+    push_margin: float = 0.0
 
     def __post_init__(self):
         if self.handle_side not in ("pushed", "printed"):
@@ -153,7 +154,7 @@ def motion_aware_arap(template, faces, handles, targets, target_body, target_nor
         zeta, n = contact(G[free])
         inside = zeta <= 0
         push = np.zeros_like(G)
-        push[free[inside]] = -zeta[inside, None] * n[inside]
+        push[free[inside]] = (cfg.push_margin - zeta[inside, None]) * n[inside]
         if cfg.push_smoothing:  # free neighbours of a pushed vertex follow part of its push
             pushed = torch.zeros(len(G), dtype=torch.bool)
             pushed[torch.from_numpy(free[inside])] = True

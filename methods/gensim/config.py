@@ -53,6 +53,7 @@ METHOD_DEFAULTS = dict(
     push_smoothing=0,  # rounds of spreading the collision push to free neighbours (0: Alg. 1 line 10 as printed)
     arap_solver="sparse",  # the ARAP backend: sparse (scipy, prefactored; drapebench.geometry.arap) | libigl (the same frame within micrometres)
     contact="surface",  # Eq. 8's distance and Alg. 1's push: surface (signed distance to the body's outer surface, as eps_c counts) | vertex (nearest body vertex and its normal)
+    push_margin=1e-5,  # m beyond the surface (or tangent plane) that Alg. 1's push moves a vertex: above float32 rounding, so a pushed vertex counts as outside
     pen_compile=False,  # run PEN under torch.compile at inference (compiled once per process, tens of seconds)
     pen_precision="fp32",  # PEN's inference arithmetic: fp32 | bf16 (CPU autocast; moves the drape by well under a millimetre, README)
     workers=2,  # frames draped at once (threads; each runs torch single-threaded): 1 = frame by frame on torch's threads
@@ -70,7 +71,7 @@ METHOD_DEFAULTS = dict(
 CHOICES = dict(stage=("full", "arap"), decoder=("local", "eq1"), decoder_init=("default", "zero"), normal_part=("abs", "softplus", "relu", "square"), body_query=("vertex", "surface"), restrain_reduction=("mean", "sum"), restrain_offset=("dead_zone", "printed", "none"), direction=("tangent", "paper"), handle_side=("pushed", "printed"), pin_rule=("skinned", "normal"), bending_rest=("flat", "template"),
                arap_solver=("sparse", "libigl"), contact=("surface", "vertex"), pen_precision=("fp32", "bf16"))  # fmt: skip
 INFERENCE_KEYS = ("arap_solver", "pen_compile", "pen_precision", "workers")  # how a drape is computed, not what is trained: outside the checkpoint's key
-ADDED_KEYS = dict(contact="vertex")  # keys newer than some checkpoints, at the behaviour those were trained with
+ADDED_KEYS = dict(contact="vertex", push_margin=0.0)  # keys newer than some checkpoints, at the behaviour those were trained with
 
 
 def gensim_params(cfg: Mapping[str, Any] | None) -> dict:
@@ -90,6 +91,8 @@ def gensim_params(cfg: Mapping[str, Any] | None) -> dict:
     if not motions or unknown:
         raise ValueError(f"gensim: method.params.train.motions must name training motions ({', '.join(('random', *TRAIN_MOTIONS))}), "
                          f"not {unknown or 'none'}; the held-out ones ({', '.join(HELD_OUT_MOTIONS)}) are the test")  # fmt: skip
+    if not p["push_margin"] >= 0:
+        raise ValueError(f"gensim push_margin must be >= 0 (m), got {p['push_margin']}")
     if int(p["workers"]) < 1:
         raise ValueError(f"gensim workers must be >= 1, got {p['workers']}")
     if p["train"]["threads"] is not None and int(p["train"]["threads"]) < 1:

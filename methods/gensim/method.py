@@ -99,7 +99,7 @@ class GenSim(DrapingMethod):
         self.p = gensim_params(self.cfg)
         self.arap = ArapConfig(self.p["eps"], self.p["handle_side"], self.p["pin_rule"], self.p["arap_steps"], self.p["arap_iterations"],
                                handle_smoothing=self.p["handle_smoothing"], push_smoothing=self.p["push_smoothing"], solver=self.p["arap_solver"],
-                               contact=self.p["contact"])  # fmt: skip
+                               contact=self.p["contact"], push_margin=float(self.p["push_margin"]))  # fmt: skip
         self.net = None
         self._compiled = None
         self.fabric = None
@@ -409,8 +409,9 @@ class GenSim(DrapingMethod):
             threads = torch.get_num_threads()
             torch.set_num_threads(1)
             try:
+                out = [frame(0)] if self.p["pen_compile"] else []  # torch.compile compiles on one thread, then the frames share it
                 with ThreadPoolExecutor(workers) as pool:
-                    out = list(pool.map(frame, range(seq.n_frames)))
+                    out += list(pool.map(frame, range(len(out), seq.n_frames)))
             finally:
                 torch.set_num_threads(threads)
         else:
