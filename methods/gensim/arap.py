@@ -172,16 +172,28 @@ def body_contact(body, normals, contact: str, candidates=None, body_faces=None, 
     (Vb, 3) (negative inside) and the unit direction (N, 3) along which -zeta moves a point out: the
     body's outer surface (``contact`` "surface": ``body_faces`` (Fb, 3), ``outer_faces`` (Fb,) bool, the
     sign the whole body's winding number, :func:`drapebench.geometry.sdf.closest_body_point`) or the nearest
-    body vertex (among ``candidates``) with its ``normals`` (Vb, 3) ("vertex": one k-d tree for the frame)."""
+    body vertex (among ``candidates``) with its ``normals`` (Vb, 3) ("vertex": one k-d tree for the frame).
+    "surface" is meant to be called with the same N points, moved, at every step: a point that moved less
+    than its last measured distance is still outside (the distance is 1-Lipschitz), so only the others are
+    queried again, and the rest read zeta = inf."""
     if contact == "surface":
         if body_faces is None:
             raise ValueError("gensim contact 'surface' needs the body's faces (and outer_faces)")
         verts = body[None].double()
+        known: dict = {}  # the points and signed distances of the last exact query, per point
 
         def surface(points: np.ndarray):
-            with WARP_LOCK:
-                sp = closest_body_point(torch.from_numpy(points)[None], verts, body_faces, outer_faces=outer_faces)
-            return sp.distance[0].numpy(), sp.normal[0].numpy()
+            need = np.ones(len(points), dtype=bool)
+            if known and len(known["points"]) == len(points):  # a point that moved less than its distance has not crossed the surface
+                need = np.linalg.norm(points - known["points"], axis=1) >= known["distance"]
+            else:
+                known.update(points=points.copy(), distance=np.zeros(len(points)), normal=np.zeros_like(points))
+            if need.any():
+                with WARP_LOCK:
+                    sp = closest_body_point(torch.from_numpy(points[need])[None], verts, body_faces, outer_faces=outer_faces)
+                known["points"][need], known["distance"][need], known["normal"][need] = points[need], sp.distance[0].numpy(), sp.normal[0].numpy()
+            zeta = np.where(need, known["distance"], np.inf)  # outside by at least the distance left
+            return zeta, known["normal"].copy()
 
         return surface
     tree = body_vertex_tree(body.double(), candidates)

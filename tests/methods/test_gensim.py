@@ -2,6 +2,8 @@
 
 import math
 
+import numpy as np
+
 import pytest
 import torch
 
@@ -318,6 +320,25 @@ def test_the_arap_push_moves_an_inside_vertex_onto_the_body_surface():
     x = motion_aware_arap(template, faces, handles, template, v, n, margin, body_faces=f, outer_faces=torch.ones(len(f), dtype=torch.bool))
     assert torch.allclose(x[1:, 2], torch.full((3,), 1.0 + 1e-5), atol=1e-7)
     assert not inside_body(x[None, 1:], v[None], f).any()  # beyond float32 rounding: counted outside, as eps_c counts
+
+
+def test_surface_contact_requeries_only_the_points_that_may_have_crossed_the_surface():
+    from drapebench.geometry.sdf import closest_body_point
+    from methods.gensim.arap import body_contact
+
+    v, f, n = _cube()
+    rng = torch.Generator().manual_seed(0)
+    points = (torch.rand(200, 3, generator=rng, dtype=torch.float64) * 2.4 - 1.2).numpy()
+    contact = body_contact(v, n, "surface", body_faces=f)
+    first, _ = contact(points)
+    exact = closest_body_point(torch.from_numpy(points)[None], v[None].double(), f).distance[0].numpy()
+    assert abs(first - exact).max() < 1e-9  # the first call measures every point
+    moved = points + (torch.rand(200, 3, generator=rng, dtype=torch.float64) - 0.5).numpy() * 0.2
+    zeta, _ = contact(moved)
+    exact = closest_body_point(torch.from_numpy(moved)[None], v[None].double(), f).distance[0].numpy()
+    skipped = np.isinf(zeta)
+    assert skipped.sum() > 20 and (exact[skipped] > 0).all()  # the points left alone are all outside
+    assert abs(zeta[~skipped] - exact[~skipped]).max() < 1e-9
 
 
 def test_gensim_rejects_an_unknown_contact():
