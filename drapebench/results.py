@@ -63,6 +63,7 @@ METRICS = {
     "pen_mm": MetricInfo("PEN (mm)", "mm", "neither: how much GenSim's PEN moves its ARAP stage", "mean |PEN displacement| over vertices and frames"),
     "pen_p99_mm": MetricInfo("PEN p99 (mm)", "mm", "neither", "99th percentile of |PEN displacement| over vertices and frames"),
     "hem_drop_mm": MetricInfo("hem drop (mm)", "mm", "neither: 0 holds, > 0 the skirt falls or stretches", "mean lowering of the hem (lowest boundary loop) by GenSim's PEN"),
+    "pin_drop_mm": MetricInfo("pin drop (mm)", "mm", "neither: 0 holds, > 0 the garment falls", "mean lowering of the pinned vertices (waistband) by GenSim's PEN"),
     "setup_s": MetricInfo("setup (s)", "s", "lower", "one-off per-garment set-up inside the drape (not in ms/frame)"),
 }
 

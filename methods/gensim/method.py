@@ -388,7 +388,6 @@ class GenSim(DrapingMethod):
         t_inputs = time.perf_counter()
         with torch.inference_mode():
             geometry = self.encode(graph, betas[None]) if full else None  # one garment and body shape for the whole drape
-        t_encode = time.perf_counter()
         verts, normals = inputs[1], inputs[2]
 
         def frame(t: int):
@@ -451,9 +450,10 @@ class GenSim(DrapingMethod):
 
     def diagnostics(self, garment, seq, result: DrapeResult) -> dict:
         """PEN's displacement from the ARAP stage over the vertices of every frame after the transition: mean,
-        p99 and max |delta| (mm; "pen_mm", "pen_p99_mm", "pen_max_mm"), and "hem_drop_mm", how far PEN lowers
-        the hem (the garment's lowest boundary loop; positive: down) on average (Fig. 10); none for the ARAP
-        stage alone."""
+        p99 and max |delta| (mm; "pen_mm", "pen_p99_mm", "pen_max_mm"), "hem_drop_mm", how far PEN lowers
+        the hem (the garment's lowest boundary loop; positive: down) on average, and "pin_drop_mm", how far it
+        lowers the pinned vertices (the waistband: the whole garment's fall, which a hem that curls up hides;
+        Fig. 10); none for the ARAP stage alone."""
         if "arap" not in result.extras:
             return {}
         delta = (result.vertices - result.extras["arap"])[seq.n_transition :].double() * 1e3
@@ -463,6 +463,8 @@ class GenSim(DrapingMethod):
         stats = {"pen_mm": moved.mean().item(), "pen_p99_mm": moved.quantile(0.99).item(), "pen_max_mm": moved.max().item()}
         if garment is not None:
             stats["hem_drop_mm"] = -delta[:, hem_vertices(garment).to(delta.device), 2].mean().item()
+            if len(garment.pins):
+                stats["pin_drop_mm"] = -delta[:, garment.pins.long().to(delta.device), 2].mean().item()
         return stats
 
     # ------------------------------------------------------------------ state

@@ -626,7 +626,9 @@ def test_hem_drop_is_the_mean_lowering_of_the_lowest_boundary_loop(body_lowres):
     x[:, hem, 2] -= 0.01  # PEN lowers the hem by 10 mm and moves nothing else down
     x[:, :, 0] += 0.002
     stats = methods.get("gensim")().diagnostics(g, seq, DrapeResult(x, extras={"arap": arap}))
-    assert stats["hem_drop_mm"] == pytest.approx(10.0, abs=1e-4)
+    assert stats["hem_drop_mm"] == pytest.approx(10.0, abs=1e-4) and stats["pin_drop_mm"] == pytest.approx(0.0, abs=1e-4)
+    x[:, g.pins.long(), 2] -= 0.004  # the waistband 4 mm down: the garment falls
+    assert methods.get("gensim")().diagnostics(g, seq, DrapeResult(x, extras={"arap": arap}))["pin_drop_mm"] == pytest.approx(4.0, abs=1e-4)
 
 
 def test_frames_draped_on_two_threads_are_the_frames_draped_one_by_one_and_bf16_stays_near_fp32(body_lowres):
