@@ -635,7 +635,7 @@ def test_frames_draped_on_two_threads_are_the_frames_draped_one_by_one_and_bf16_
     from drapebench.body import make_sequence
     from drapebench.garments import make_garment
 
-    g = make_garment("skirt", body_lowres, resolution=0.04)
+    g = make_garment("skirt", body_lowres, resolution=0.03)
     seq = make_sequence("kick", 2, seed=0, transition=1)
     out = {}
     for name, params in {"one": {"workers": 1}, "two": {"workers": 2}, "bf16": {"workers": 1, "pen_precision": "bf16"}}.items():
