@@ -179,7 +179,7 @@ class GenSim(DrapingMethod):
         geometry = self.encode(graph, betas) if geometry is None else geometry
         index = graph.binding.nu[None].expand(G.shape[0], -1)  # each vertex's canonical closest body vertex: its body feature
         net = self.inference_net() if inference else self.net
-        with torch.autocast("cpu", torch.bfloat16, enabled=inference and self.p["pen_precision"] == "bf16"):
+        with torch.autocast(G.device.type, torch.bfloat16, enabled=inference and self.p["pen_precision"] == "bf16"):
             delta, _ = net(node, edge, graph.senders, graph.receivers, graph.template, None, index, normal, geometry)
         delta = delta.to(G.dtype)
         return G + delta, delta
@@ -388,11 +388,11 @@ class GenSim(DrapingMethod):
         t_inputs = time.perf_counter()
         with torch.inference_mode():
             geometry = self.encode(graph, betas[None]) if full else None  # one garment and body shape for the whole drape
-        verts, normals = inputs[1], inputs[2]
+        verts, normals, device = inputs[-3], inputs[-2], self.body.device
 
         def frame(t: int):
             a = time.perf_counter()
-            G, H, D = self.arap_frame(graph, inputs, t)
+            G, H, D = (v.to(device) for v in self.arap_frame(inputs, t))
             b = time.perf_counter()
             if full:
                 with torch.inference_mode():
