@@ -34,7 +34,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 CONFIGS = {  # name: method.params of the configuration
     "default": {},
-    "one worker": {"workers": 1},
+    "two workers": {"workers": 2},
     "vertex contact": {"contact": "vertex"},
     "compiled": {"pen_compile": True},
     "compiled bf16": {"pen_compile": True, "pen_precision": "bf16"},

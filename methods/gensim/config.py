@@ -56,7 +56,7 @@ METHOD_DEFAULTS = dict(
     push_margin=1e-5,  # m beyond the surface (or tangent plane) that Alg. 1's push moves a vertex: above float32 rounding, so a pushed vertex counts as outside
     pen_compile=False,  # run PEN under torch.compile at inference (compiled once per process, tens of seconds)
     pen_precision="fp32",  # PEN's inference arithmetic: fp32 | bf16 (CPU autocast; moves the drape by well under a millimetre, README)
-    workers=2,  # frames draped at once (threads; each runs torch single-threaded): 1 = frame by frame on torch's threads
+    workers=1,  # frames draped at once (threads, each running torch single-threaded); 1: frame by frame on torch's threads
     collision_eps=0.003,  # eps_coll (Eq. 8)
     bending_rest="flat",  # flat (Eq. 4: theta^2) | template
     fabric_mean=None,  # mu_fabric (m); None: fitted by methods.gensim.fabric (cached)
