@@ -36,6 +36,7 @@ from drapebench.cache import data_dir
 
 log = logging.getLogger("drapebench")
 
+STORE_ATTEMPTS = 5  # tries to open a store that another job is creating at the same moment
 PARAM_CHARS = 6000  # MLflow's limit on a parameter's value
 TAG_KEYS = ("commit", "method", "garment", "body", "motion", "shape", "seed", "train_seed", "dtype", "device", "experiment")
 HISTORIES = {"losses.csv": "train", "evaluations.csv": "eval"}  # run-folder file -> metric prefix of its columns
@@ -140,9 +141,16 @@ def log_run(cfg: DictConfig, out: Path, record: dict, uri: str | None = None) ->
     for quiet in ("alembic", "mlflow.store.db.utils"):  # the first use of a store logs its table migrations
         logging.getLogger(quiet).setLevel(logging.WARNING)
     uri = tracking_uri(uri)
-    client = MlflowClient(uri)
-    run = client.create_run(_experiment_id(client, str(cfg.experiment_name), artifact_location(uri)), run_name=out.name,
-                            tags=_tags(cfg, out, record))  # fmt: skip
+    for attempt in range(STORE_ATTEMPTS):  # the first jobs of a parallel sweep create a new store's tables at once
+        try:
+            client = MlflowClient(uri)
+            experiment = _experiment_id(client, str(cfg.experiment_name), artifact_location(uri))
+            break
+        except Exception:  # noqa: BLE001  the other job's schema migration won: open the store again
+            if attempt == STORE_ATTEMPTS - 1:
+                raise
+            time.sleep(0.5 * (attempt + 1))
+    run = client.create_run(experiment, run_name=out.name, tags=_tags(cfg, out, record))
     run_id = run.info.run_id
     status = "FAILED"
     try:

@@ -110,3 +110,24 @@ def test_params_and_metric_names_are_what_mlflow_accepts():
 def test_a_local_sqlite_store_keeps_its_artifacts_beside_it(tmp_path):
     assert artifact_location(f"sqlite:///{tmp_path / 'm.db'}") == (tmp_path / "mlartifacts").as_uri()
     assert artifact_location("http://tracking.example:5000") is None
+
+
+def test_a_store_another_job_is_creating_is_opened_again(tmp_path, monkeypatch):
+    import drapebench.tracker as tracker
+    from mlflow.tracking import MlflowClient
+    from sqlalchemy.exc import OperationalError
+
+    monkeypatch.setattr(tracker.time, "sleep", lambda s: None)
+    real, calls = tracker._experiment_id, []
+
+    def racing(*args):  # the first open meets the other job's half-made schema, as in a parallel sweep's first jobs
+        calls.append(args[1])
+        if len(calls) == 1:
+            raise OperationalError("CREATE TABLE secrets", {}, Exception("table secrets already exists"))
+        return real(*args)
+
+    monkeypatch.setattr(tracker, "_experiment_id", racing)
+    uri = f"sqlite:///{tmp_path / 'mlflow.db'}"
+    (tmp_path / "run").mkdir()
+    run_id = log_run(_compose(["experiment_name=race"]), tmp_path / "run", {"eps_e": 1.0}, uri)
+    assert len(calls) == 2 and MlflowClient(uri).get_run(run_id).data.metrics["eps_e"] == 1.0
