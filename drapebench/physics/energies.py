@@ -82,26 +82,29 @@ def bending_energy(
     """Discrete hinge bending (J): sum_e k s_e / 2 [(1 - w_e) theta_e^2 + w_e (theta_e - theta_bar_e)^2].
 
     theta is the signed dihedral angle (``ops.dihedral_angles``), s_e = l_e^2 / (4 (a0 + a1)) with the
-    edge length l_e and the two face areas a0, a1 (SNUG/GAPS code; the GAPS paper's Eq. 12 writes
-    l^2/(8a) with no 1/2 in front, the same number), k = Material.bending (N m).
+    hinge edge's length l_e and its two face areas a0, a1 (the GAPS paper's Eq. 12 writes l^2/(8a) with
+    no 1/2 in front, the same number), k = Material.bending (N m).
     ``rest_angle``: "flat" (theta_bar = 0, SNUG), "template" (theta_bar = rest dihedral), or an (H,)
     tensor (rad). ``blend`` (H,) or (B, H) in [0, 1] gives GAPS's per-edge mix between the flat and
-    the template angle (Eq. 12: w = min-max normalised body distance of the edge in the rest pose);
-    with ``blend`` theta_bar is the template angle and ``rest_angle`` is ignored.
-    ``scale``: "rest" (s_e from the rest mesh, SNUG/GAPS code) or "current" (from the deformed edge
-    length and face areas, as GenSim Eq. 4 prints ||E_ij^pred||^2).
+    the template angle (Eq. 12); with ``blend`` theta_bar is the template angle and ``rest_angle`` is ignored.
+    ``scale`` says where l_e and a0, a1 are measured: "rest" (both on the rest mesh; ArcSim's
+    constant stiffness), "edge" (l_e on the deformed mesh, the areas at rest: what the SNUG and GAPS
+    code compute, ``losses/physics.py`` / ``script/losses/losses.py``, so a stretched hinge bends
+    stiffer by its stretch squared) or "current" (both deformed, as GenSim Eq. 4 prints ||E_ij^pred||^2).
     """
     x = _batch(x)
     theta = dihedral_angles(x, topo)
     rest_area = topo.face_areas[topo.hinge_faces].sum(-1)
     if scale == "rest":
         s = topo.hinge_rest_lengths**2 / (4.0 * rest_area)
+    elif scale == "edge":
+        s = edge_lengths(x, topo.hinge_edges) ** 2 / (4.0 * rest_area)
     elif scale == "current":
         l2 = edge_lengths(x, topo.hinge_edges) ** 2
         area = face_areas(x, topo.faces)[..., topo.hinge_faces].sum(-1)
         s = l2 / (4.0 * torch.maximum(area, 1e-6 * rest_area))  # floor: collapsed faces stay finite
     else:
-        raise ValueError(f"scale must be 'rest' or 'current', not {scale!r}")
+        raise ValueError(f"scale must be 'rest', 'edge' or 'current', not {scale!r}")
     if blend is not None:
         w = blend.to(x.dtype)
         e = (1.0 - w) * theta**2 + w * (theta - topo.rest_dihedral) ** 2

@@ -41,6 +41,8 @@ METHOD_DEFAULTS = dict(
     collision_eps=2e-3,
     collision_distance="surface",  # surface: exact signed distance to the body mesh | vertex: nearest body vertex (the code)
     bending="blend",  # blend | flat | template
+    bending_scale="edge",  # edge: the hinge's deformed length over its rest face areas (the code) | rest: both at rest
+    bending_blend="normal",  # blend's alpha from the signed distance along the nearest body vertex's normal (the code) | distance: its Euclidean distance
     single_shape=False,  # NCS: train on the mean body only
     normalize_inputs=False,  # the code: raw inputs; conf/method/gaps.yaml standardises them (methods/gaps/README.md)
     hidden=256,
@@ -50,13 +52,14 @@ METHOD_DEFAULTS = dict(
     train=TRAIN_DEFAULTS,
 )
 ADDED_KEYS = dict(canonical="template", relax_grid=(-2.0, 0.0, 2.0), relax_components=2, relax_iterations=200, relax_clearance=2e-3,
-                  relax_inextensibility_weight=None)  # keys newer than some checkpoints, at the behaviour those were trained with
+                  relax_inextensibility_weight=None, bending_scale="rest", bending_blend="distance")  # keys newer than some checkpoints, at the behaviour those were trained with
 OPTIMUM_DEFAULTS = dict(
     **SOLVER_DEFAULTS,  # drapebench.optimum: solver, iterations, lr, history
     kext_epoch=None,  # the training epoch whose k_ext the loss uses; None: the end of train.kext_ramp_epochs (its final value)
 )
 CHOICES = dict(skinning=("rbf", "nearest", "smoothed"), shape_transfer=("none", "nearest", "rbf"), canonical=("template", "relaxed"), normalisation=("code", "batch"),
-               collision_distance=("surface", "vertex"), kext=("collision", "one"), bending=("blend", "flat", "template"))  # fmt: skip
+               collision_distance=("surface", "vertex"), kext=("collision", "one"), bending=("blend", "flat", "template"),
+               bending_scale=("edge", "rest"), bending_blend=("normal", "distance"))  # fmt: skip
 
 
 def gaps_params(cfg: Mapping[str, Any] | None) -> dict:

@@ -29,11 +29,25 @@ def strain(x: torch.Tensor, topo, material, n: int) -> torch.Tensor:
     return stvk_energy(x, topo, material).sum() / n
 
 
-def bending(x: torch.Tensor, topo, material, n: int, mode: str = "blend", blend: torch.Tensor | None = None) -> torch.Tensor:
+def bending(x: torch.Tensor, topo, material, n: int, mode: str = "blend", blend: torch.Tensor | None = None, scale: str = "edge") -> torch.Tensor:
     """Bending energy (J) summed over x's frames, divided by ``n``, against flat (``mode`` "flat"), template ("template") or, for "blend",
-    rest angles blended per hinge edge by ``blend`` (E,) in [0, 1] (GAPS Eq. 12)."""
+    rest angles blended per hinge edge by ``blend`` (E,) in [0, 1] (GAPS Eq. 12); each hinge scaled per ``scale``
+    (:func:`drapebench.physics.bending_energy`: "edge", the deformed edge length over the rest areas, as the code; "rest")."""
     rest_angle = "template" if mode == "template" else "flat"
-    return bending_energy(x, topo, material, rest_angle=rest_angle, blend=blend if mode == "blend" else None).sum() / n
+    return bending_energy(x, topo, material, rest_angle=rest_angle, blend=blend if mode == "blend" else None, scale=scale).sum() / n
+
+
+def blend_weights(template: torch.Tensor, body_vertices: torch.Tensor, body_normals: torch.Tensor, nearest: torch.Tensor,
+                  hinge_edges: torch.Tensor, mode: str = "normal") -> torch.Tensor:
+    """GAPS Eq. 12's per-hinge weight alpha (H,) in [0, 1] of the template angle: each template vertex's (V, 3) m
+    distance to its ``nearest`` (V,) vertex of the rest body (body_vertices, unit body_normals (Vb, 3)), averaged over
+    the hinge edge's two ends (hinge_edges (H, 2)) and min-max normalised over the hinges. ``mode`` "normal": the
+    signed distance along that body vertex's normal (the code's ``compute_bending_coeff``); "distance": the
+    Euclidean distance (this suite's earlier reading)."""
+    offset = template - body_vertices[nearest]
+    d = (offset * body_normals[nearest]).sum(-1) if mode == "normal" else offset.norm(dim=-1)
+    edge_d = d[hinge_edges].mean(-1)
+    return (edge_d - edge_d.min()) / (edge_d.max() - edge_d.min()).clamp_min(1e-9)
 
 
 def gravity(x: torch.Tensor, topo, material, n: int) -> torch.Tensor:
@@ -81,7 +95,7 @@ def loss_terms(x: torch.Tensor, window: int, nn, topo, material, p: dict, epoch:
     frames = B * window if p["normalisation"] == "code" else B
     terms = {
         "strain": strain(x, topo, material, frames),
-        "bending": bending(x, topo, material, frames, p["bending"], blend),
+        "bending": bending(x, topo, material, frames, p["bending"], blend, p["bending_scale"]),
         "gravity": gravity(x, topo, material, frames),
         "collision": collision(x, nn, B, p["collision_weight"], p["collision_eps"]),
         "inertia": inertia(x.reshape(B, window, *x.shape[1:]), topo, material),

@@ -70,9 +70,8 @@ class GAPS(DrapingMethod):
                 w = smoothed_weights(w, garment.topology, p["smooth_iterations"])
         if self.weights is None or self.weights.shape != w.shape:
             self.weights = torch.nn.Parameter(w, requires_grad=p["trainable_weights"])
-        dist = (self.template - rest_body[self.nn_rest]).norm(dim=-1)
-        edge_d = dist[garment.topology.hinge_edges].mean(-1)
-        self.bend_blend = (edge_d - edge_d.min()) / (edge_d.max() - edge_d.min()).clamp_min(1e-9)
+        rest_normals = vertex_normals(rest_body[None], body.faces)[0]
+        self.bend_blend = losses.blend_weights(self.template, rest_body, rest_normals, self.nn_rest, garment.topology.hinge_edges, p["bending_blend"])
         self.candidates = culled_body_vertices(self.template, rest_body, body.weights)
         self.garment_betas = garment.betas[: body.n_betas].to(body.device, body.dtype)
         self.n_in = body.n_betas + 3 * body.n_joints + 3

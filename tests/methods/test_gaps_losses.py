@@ -60,7 +60,9 @@ def test_each_term_is_its_physics_energy_times_its_weight(sheet, plane):
     blend = torch.linspace(0, 1, topo.hinge_edges.shape[0], dtype=x.dtype)
     assert_weighted(lambda y: losses.strain(y, topo, MAT, B), x, lambda y: stvk_energy(y, topo, MAT), 1.0, B)
     for mode, kw in (("flat", {}), ("template", {"rest_angle": "template"}), ("blend", {"blend": blend})):
-        assert_weighted(lambda y: losses.bending(y, topo, MAT, B, mode, blend), x, lambda y: bending_energy(y, topo, MAT, **kw), 1.0, B)
+        for scale in ("edge", "rest"):
+            assert_weighted(lambda y: losses.bending(y, topo, MAT, B, mode, blend, scale), x,
+                            lambda y: bending_energy(y, topo, MAT, scale=scale, **kw), 1.0, B)  # fmt: skip
     assert_weighted(lambda y: losses.gravity(y, topo, MAT, B), x, lambda y: gravity_energy(y, topo, MAT), 1.0, B)
     nn = near(x, plane)
     assert (nn.distance < EPS).any()
@@ -139,3 +141,29 @@ def test_inertia_pulls_the_last_frame_to_its_prediction_and_not_the_earlier_fram
     toward = torch.zeros_like(xw)
     toward[:, -1] = predicted - xw[:, -1]
     assert_moves_along(term, xw, ~earlier[..., None].expand(B, W, rest.shape[0]), toward)
+
+
+def test_blend_weight_is_the_signed_distance_along_the_body_normal(plane):
+    """GAPS Eq. 12's alpha as the code computes it: a hinge inside the body (below the plane) gets the smallest
+    weight of the template angle, one far outside the largest; by the Euclidean distance ("distance", this suite's
+    earlier reading) the inside hinge 3 cm deep would rank above the one 2 cm outside."""
+    bv, bn = plane[0][0], plane[1][0]
+    heights = torch.tensor([0.02, 0.02, -0.03, -0.03, 0.05, 0.05], dtype=bv.dtype)  # three hinges, two ends each
+    template = torch.stack([torch.full_like(heights, 0.1), torch.linspace(0.05, 0.15, 6, dtype=bv.dtype), heights], -1)
+    nearest = (template[:, None, :2] - bv[None, :, :2]).norm(dim=-1).argmin(1)
+    hinges = torch.tensor([[0, 1], [2, 3], [4, 5]])
+    alpha = losses.blend_weights(template, bv, bn, nearest, hinges)
+    assert torch.allclose(alpha, torch.tensor([0.625, 0.0, 1.0], dtype=bv.dtype))  # (0.02 + 0.03) / (0.05 + 0.03)
+    unsigned = losses.blend_weights(template, bv, bn, nearest, hinges, "distance")
+    assert unsigned[1] > unsigned[0]  # the old reading orders the inside hinge above the outside one
+
+
+def test_gaps_defaults_bend_as_the_code():
+    """The model's defaults are the code's bending (the deformed edge's length, alpha along the body normal); the
+    earlier readings stay reachable and are what a checkpoint without the keys was trained with."""
+    from methods.gaps.config import ADDED_KEYS
+
+    p = gaps_params(None)
+    assert (p["bending_scale"], p["bending_blend"]) == ("edge", "normal")
+    assert (ADDED_KEYS["bending_scale"], ADDED_KEYS["bending_blend"]) == ("rest", "distance")
+    assert gaps_params({"bending_scale": "rest", "bending_blend": "distance"})["bending_scale"] == "rest"

@@ -4,6 +4,7 @@ import torch
 import trimesh
 
 from drapebench.geometry import get_topology
+from drapebench.geometry.ops import dihedral_angles
 from drapebench.physics import (
     Material,
     bending_energy,
@@ -190,15 +191,34 @@ def test_against_per_element_loops():
         G = 0.5 * (Fm.T @ Fm - np.eye(2))
         total += A * MAT.thickness * (MAT.lame_mu * (G * G).sum() + 0.5 * MAT.lame_lambda * np.trace(G) ** 2)
     assert np.isclose(stvk_energy(x, topo, MAT).item(), total, rtol=1e-10)
-    total = 0.0
+    total, total_edge = 0.0, 0.0
     for (i, j), (k, l), (f0, f1) in zip(topo.hinge_edges.numpy(), topo.hinge_opposite.numpy(), topo.hinge_faces.numpy()):
         e = X[j] - X[i]
         n0, n1 = np.cross(e, X[k] - X[i]), np.cross(X[l] - X[i], e)
         th = np.arctan2(np.dot(np.cross(n0, n1), e / np.linalg.norm(e)), np.dot(n0, n1))
         l0 = np.linalg.norm(V[j] - V[i])
-        a = topo.face_areas[f0].item() + topo.face_areas[f1].item()
+        a = topo.face_areas[f0].item() + topo.face_areas[f1].item()  # rest areas in both scales
         total += 0.5 * MAT.bending * l0**2 / (4 * a) * th**2
+        total_edge += 0.5 * MAT.bending * np.dot(e, e) / (4 * a) * th**2  # the SNUG/GAPS code: the deformed edge's length
     assert np.isclose(bending_energy(x, topo, MAT).item(), total, rtol=1e-10)
+    assert np.isclose(bending_energy(x, topo, MAT, scale="edge").item(), total_edge, rtol=1e-10)
+
+
+def test_edge_scale_grows_with_the_hinge_stretch_squared():
+    """One hinge of two triangles, folded, then stretched 1.25x along its edge: the code's ("edge") scale is the
+    rest one times 1.25^2 for the same angle, and the rest scale does not change."""
+    V = np.array([[0.0, 0, 0], [0.1, 0, 0], [0.05, 0.08, 0], [0.05, -0.08, 0]])
+    F = np.array([[0, 1, 2], [1, 0, 3]])
+    topo = get_topology(V, F, dtype=torch.float64, cache=False)
+    folded = torch.as_tensor(V).clone()
+    folded[3, 2] = 0.04  # the second face turned about the hinge edge (x axis)
+    stretched = folded * torch.tensor([1.25, 1.0, 1.0], dtype=torch.float64)  # the hinge edge 1.25x, the angle kept
+    assert torch.isclose(dihedral_angles(stretched[None], topo), dihedral_angles(folded[None], topo)).all()
+    rest = bending_energy(stretched, topo, MAT)
+    assert torch.isclose(bending_energy(folded, topo, MAT, scale="edge"), rest)  # unstretched: the two scales agree
+    assert torch.isclose(bending_energy(stretched, topo, MAT, scale="edge"), 1.25**2 * rest)
+    with pytest.raises(ValueError, match="scale must be"):
+        bending_energy(folded, topo, MAT, scale="length")
 
 
 def test_float32_matches_float64_on_5k_mesh():
