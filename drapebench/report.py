@@ -79,7 +79,7 @@ def collect(dirs) -> pd.DataFrame:
             rows.append(rec)
     if not rows:
         raise FileNotFoundError(f"no metrics.json below {', '.join(map(str, dirs))}; did the runs finish?")
-    return with_scene(with_energy(pd.DataFrame(rows)))
+    return with_scene(with_loss_gap(with_energy(pd.DataFrame(rows))))
 
 
 def with_energy(df: pd.DataFrame) -> pd.DataFrame:
@@ -88,6 +88,24 @@ def with_energy(df: pd.DataFrame) -> pd.DataFrame:
     if all(c in df for c in ENERGY_PARTS) and "energy_j" not in df:
         df = df.assign(energy_j=df[list(ENERGY_PARTS)].sum(axis=1, min_count=len(ENERGY_PARTS)))
     return df
+
+
+OPTIMUM_SUFFIX = "_optimum"  # method <m>'s loss optimum runs as method <m>_optimum (gaps: gaps_optimum)
+
+
+def with_loss_gap(df: pd.DataFrame) -> pd.DataFrame:
+    """``df`` with ``loss_gap_closed`` (%) where a run scores its own loss on its drape and its untrained start
+    (``gaps_loss``, ``gaps_loss@untrained``) and runs of ``<method>_optimum`` score the same scene (garment, motion,
+    shape, body): 100 (L_untrained - L) / (L_untrained - L_optimum), the share of the gap from the untrained start
+    to the loss's optimum (mean over the optimum's runs of the scene) that training closes."""
+    need = {"gaps_loss", "gaps_loss@untrained", "method"}
+    if not need <= set(df):
+        return df
+    keys = [c for c in ("garment", "motion", "shape", "body") if c in df]
+    optima = df[df["method"].astype(str).str.endswith(OPTIMUM_SUFFIX)].groupby(["method", *keys], dropna=False)["gaps_loss"].mean()
+    opt = [optima.get((f"{r['method']}{OPTIMUM_SUFFIX}", *(r[k] for k in keys)), np.nan) for _, r in df.iterrows()]
+    start = df["gaps_loss@untrained"]
+    return df.assign(loss_gap_closed=100.0 * (start - df["gaps_loss"]) / (start - np.asarray(opt, dtype=float)))
 
 
 def with_scene(df: pd.DataFrame) -> pd.DataFrame:

@@ -64,6 +64,10 @@ METRICS = {
     "pen_p99_mm": MetricInfo("PEN p99 (mm)", "mm", "neither", "99th percentile of |PEN displacement| over vertices and frames"),
     "hem_drop_mm": MetricInfo("hem drop (mm)", "mm", "neither: 0 holds, > 0 the skirt falls or stretches", "mean lowering of the hem (lowest boundary loop) by GenSim's PEN"),
     "pin_drop_mm": MetricInfo("pin drop (mm)", "mm", "neither: 0 holds, > 0 the garment falls", "mean lowering of the pinned vertices (waistband) by GenSim's PEN"),
+    "gaps_loss": MetricInfo("GAPS loss (J)", "J", "lower, down to its optimum's",
+                            "GAPS's own training loss per frame (its weighted terms, k_ext at its cap)"),
+    "loss_gap_closed": MetricInfo("gap closed (%)", "%", "higher, 100 at the loss's optimum",
+                                  "share of the loss gap from the untrained skinning to the loss's optimum that training closes", decimals=1),
     "setup_s": MetricInfo("setup (s)", "s", "lower", "one-off per-garment set-up inside the drape (not in ms/frame)"),
 }
 

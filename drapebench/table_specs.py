@@ -92,11 +92,11 @@ SPECS = {s.name: s for s in [
     TableSpec("gaps_table4", "GAPS Table 4: training time, time to converge and drape time of Table 1's runs",
               ("train_s", "converged_s", "ms_per_frame"), sweeps_of="gaps_table1", methods=("lbs", "pbs", "snug_like", "ncs_like", "gaps")),
     *[TableSpec(f"gaps_heldout_{g}", f"GAPS against its own skinning, its loss's optimum and vbd on held-out motion and "
-                f"shapes: the {g}", ("vertex_error_mm", "vertex_error_mm@untrained", "eps_c", "eps_c@postprocessed"), group="shape",
+                f"shapes: the {g}", ("vertex_error_mm", "vertex_error_mm@untrained", "eps_c", "eps_c@postprocessed", "loss_gap_closed"), group="shape",
                 sweeps=(Sweep("gaps_heldout", (SEEDS, "method=gaps", f"garment={g}")), Sweep("gaps_heldout", ("method=lbs,gaps_optimum", f"garment={g}"))),
                 methods=("lbs", "gaps_optimum", "gaps"), garments=(g,)) for g in ("tshirt", "dress", "skirt")],  # fmt: skip
     TableSpec("gaps_heldout_tshirt_anny", "gaps_heldout_tshirt on the full anny body",
-              ("vertex_error_mm", "vertex_error_mm@untrained", "eps_c", "eps_c@postprocessed"), group="shape",
+              ("vertex_error_mm", "vertex_error_mm@untrained", "eps_c", "eps_c@postprocessed", "loss_gap_closed"), group="shape",
               sweeps=(Sweep("gaps_heldout", (SEEDS, "method=gaps", "garment=tshirt", "body=anny")),
                       Sweep("gaps_heldout", ("method=lbs,gaps_optimum", "garment=tshirt", "body=anny"))),
               methods=("lbs", "gaps_optimum", "gaps")),  # fmt: skip

@@ -459,3 +459,22 @@ def test_fig10_table_draws_its_metrics_as_bars_over_seeds(tmp_path, monkeypatch)
     assert bars.name == "fig10_bars.png" and bars.read_bytes()[:4] == b"\x89PNG" and bars.stat().st_size > 5000
     assert drawn["m"] == ["hem_drop_mm", "eps_e"]
     assert report.seed_stats(df[df["method"] == df["method"].iloc[0]], "hem_drop_mm")[2] == 2
+
+
+def test_loss_gap_closed_is_the_share_of_the_untrained_to_optimum_gap(tmp_path):
+    import json
+    import shutil
+
+    from drapebench.report import collect
+
+    runs = [("gaps", "1,-1", 2.0, 4.0), ("gaps_optimum", "1,-1", 1.0, 4.0), ("gaps", "2,0", 3.0, 3.5), ("gaps_kext1", "1,-1", 3.0, 4.0)]
+    for i, (method, shape, loss, start) in enumerate(runs):
+        d = tmp_path / f"{i}_{method}"
+        shutil.copytree(FIXTURES / "0_lbs_tshirt", d)
+        rec = {**json.loads((d / "metrics.json").read_text()), "method": method, "shape": shape, "gaps_loss": loss, "gaps_loss@untrained": start}
+        (d / "metrics.json").write_text(json.dumps(rec))
+    gap = collect([tmp_path])["loss_gap_closed"].tolist()
+    assert gap[0] == pytest.approx(100 * (4.0 - 2.0) / (4.0 - 1.0))  # two thirds of the way from its start to the optimum
+    assert np.isnan(gap[2]) and np.isnan(gap[3])  # no optimum of that scene / of that loss (gaps_kext1_optimum): no column value
+    md = write_table([tmp_path], "gaps_heldout_tshirt", tmp_path / "h")[0].read_text()
+    assert "gap closed (%)" in md and "66.7" in md

@@ -20,6 +20,7 @@ from drapebench.cache import content_hash
 from drapebench.geometry.ops import ring_smooth, vertex_normals
 from drapebench.geometry.proximity import culled_body_vertices, nearest_body_vertex
 from drapebench.geometry.sdf import closest_body_point
+from drapebench.optimum import sequence_terms
 from drapebench.train import Objective, train, train_config
 from methods.base import DrapeResult, DrapingMethod, FitReport
 from methods.gaps import losses
@@ -274,6 +275,18 @@ class GAPS(DrapingMethod):
             if self.p["collision_postprocess"]:
                 return {"raw": result.extras["raw"], "untrained": untrained}
             return {"postprocessed": self._push_out(result.vertices, seq), "untrained": untrained}
+
+    def kext_epoch(self) -> int:
+        """The training epoch whose k_ext a drape's own loss is scored at: the end of the ramp (k_ext's final value)."""
+        return self.p["train"]["kext_ramp_epochs"]
+
+    def diagnostics(self, garment, seq, result: DrapeResult) -> dict:
+        """GAPS's own training loss (:meth:`window_loss` at :meth:`kext_epoch`; J per frame, mean over the frames after
+        the transition) on the drape before any push-out, ``gaps_loss``, and on the untrained skinning,
+        ``gaps_loss@untrained``: with a ``gaps_optimum`` run of the scene, the report's ``loss_gap_closed``."""
+        loss, start, W = self.window_loss(seq, self.kext_epoch()), int(seq.n_transition), self.p["train"]["window"]
+        drapes = {"gaps_loss": result.extras.get("raw", result.vertices), "gaps_loss@untrained": self.untrained_drape(seq)}
+        return {name: float(np.mean([sum(t.values()) for t in sequence_terms(loss, x.to(self.body.dtype), W)[start:]])) for name, x in drapes.items()}
 
     def _push_out(self, x: torch.Tensor, seq) -> torch.Tensor:
         """SNUG's collision post-processing: each vertex of the drape x (T, V, 3) m of ``seq`` moved out along the

@@ -107,3 +107,20 @@ def test_every_term_shapes_the_optimum(scene):
         for sign in (0.0, -1.0):
             moved = (solve({k: sign}) - full).norm(dim=-1).max()
             assert not moved < 1e-7, (k, sign, moved)  # NaN (a flipped term can diverge) counts as moved
+
+
+def test_a_run_scores_its_own_loss_below_its_start_at_the_optimum_and_level_with_it_untrained(scene):
+    """``gaps_loss`` (the drape's own loss) and ``gaps_loss@untrained``, the report's loss gap: the optimum below its
+    start, a network still at its zero output level with it."""
+    body, g, seq = scene
+    m = methods.get("gaps_optimum")({"optimum": {"iterations": 5}})
+    m.fit(TrainData(body=body, material=Material(), garment=g, load_train=lambda: []), {})
+    scores = m.diagnostics(g, seq, m.drape(g, seq))
+    assert scores["gaps_loss"] < 0.9 * scores["gaps_loss@untrained"], scores
+    loss = m.window_loss(seq, m.kext_epoch())
+    by_hand = np.mean([sum(t.values()) for t in sequence_terms(loss, m.untrained_drape(seq), 3)[seq.n_transition :]])
+    assert scores["gaps_loss@untrained"] == pytest.approx(by_hand, rel=1e-6)
+    gaps = methods.get("gaps")(MEAN_BODY)
+    gaps.fit(TrainData(body=body, material=Material(), garment=g, load_train=lambda: [seq]), {"epochs": 0})
+    untrained = gaps.diagnostics(g, seq, gaps.drape(g, seq))
+    assert untrained["gaps_loss"] == pytest.approx(untrained["gaps_loss@untrained"], rel=1e-6)
