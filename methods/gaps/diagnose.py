@@ -7,12 +7,13 @@ size and roughness and how saturated its GRU trunk is, on the run's test sequenc
 ``--optimum``, beside the drape of a ``gaps_optimum`` run of the same scene); or, with ``--pinned`` and a
 ``gaps_optimum`` run, how far from the run's reference its untrained skinning, its optimum and the optimum
 with the garment's pins held where the reference holds them are, at the pins and elsewhere (whether a pin
-term would close the gap).
+term would close the gap); or, with ``--losses``, a training run's gradient norms and how often its clip binds.
 
     python -m methods.gaps.diagnose --garment tshirt --body anny_lowres             # train=cpu's GAPS keys
     python -m methods.gaps.diagnose --garment tshirt --budget paper --epoch 100 --windows 16
     python -m methods.gaps.diagnose --run multirun/<date>/<sweep>/<run> [--training-motion dance | --optimum <gaps_optimum run>]
     python -m methods.gaps.diagnose --run multirun/<date>/<sweep>/<gaps_optimum run> --pinned [--frames 40]
+    python -m methods.gaps.diagnose --losses <run>/losses.csv --clip 20       # gradient norms, the clip's binding rate
 """
 
 from __future__ import annotations
@@ -50,7 +51,8 @@ def budget_params(budget: str) -> dict:
 def diagnose(garment: str, body: str, budget: str = "cpu", epoch: int | None = None, windows: int = 8, seed: int = 0) -> pd.DataFrame:
     """The term table (:func:`drapebench.diagnose.term_table`) of GAPS's loss on ``windows`` random training
     windows of ``train_small`` (random shapes as in training) at the untrained skinning, k_ext at ``epoch``
-    (None: the end of the budget's ramp)."""
+    (None: the end of the budget's ramp), and each term's gradient on the network's parameter groups there
+    (:func:`parameter_gradients`)."""
     params = budget_params(budget)
     m = methods.get("gaps")(params)
     b = load_body(body)
@@ -63,7 +65,43 @@ def diagnose(garment: str, body: str, budget: str = "cpu", epoch: int | None = N
     with torch.no_grad():
         delta = torch.zeros(len(betas), W, 3 * g.n_vertices, dtype=b.dtype)
         x = lbs(m._canonical(delta, betas).reshape(len(betas) * W, -1, 3), m.weights, out.transforms)
-    return term_table(lambda y: m._terms(y, out.vertices, normals, at.epoch), x)
+    return term_table(lambda y: m._terms(y, out.vertices, normals, at.epoch), x), parameter_gradients(m, (betas, pose, vel, tr, out, normals), at)
+
+
+def parameter_gradients(m, batch, at) -> pd.DataFrame:
+    """Per weighted loss term of GAPS (and their sum) on ``batch`` at the network's current weights: the norm of its
+    gradient on each parameter group the trainer clips together (``trunk``: the GRU, ``output``: the output layer)
+    and on both, the global norm ``train.grad_clip`` is compared with (units: the term's, J, per unit weight)."""
+    groups = {"trunk": list(m.net.gru.parameters()), "output": list(m.net.out.parameters())}
+    terms = m._loss_terms(batch, at)
+    rows = []
+    for name, value in {**terms, "total": sum(terms.values())}.items():
+        grads = torch.autograd.grad(value, [q for g in groups.values() for q in g], retain_graph=True, allow_unused=True)
+        norms, i = {}, 0
+        for g, params in groups.items():
+            gs = [x for x in grads[i : i + len(params)] if x is not None]
+            norms[g] = float(torch.linalg.vector_norm(torch.stack([x.norm() for x in gs]))) if gs else 0.0
+            i += len(params)
+        rows.append({"term": name, "value": float(value.detach()), **{f"|d/d {g}|": v for g, v in norms.items()},
+                     "|d/d all|": float(np.hypot(*norms.values()))})  # fmt: skip
+    return pd.DataFrame(rows)
+
+
+CLIP_COLUMNS = ("grad_norm", "grad_norm_trunk", "grad_norm_output")  # drapebench.train's per-step norms before clipping
+
+
+def clip_table(losses_csv, clip: float | None) -> pd.DataFrame:
+    """The global gradient norm of every training step in a run's ``losses.csv`` and its two groups' (before
+    clipping): quantiles over the steps and, for the global norm, the share of steps a clip at ``clip`` scales down
+    (its binding rate). A clip set from these quantiles (e.g. the 90th percentile of an unclipped run) binds on a
+    minority of steps."""
+    df = pd.read_csv(losses_csv)
+    rows = []
+    for col in (c for c in CLIP_COLUMNS if c in df):
+        q = df[col].quantile([0.1, 0.5, 0.9, 0.99])
+        binding = float((df[col] > clip).mean()) if clip and col == "grad_norm" else float("nan")
+        rows.append({"norm": col, "p10": q[0.1], "p50": q[0.5], "p90": q[0.9], "p99": q[0.99], "max": df[col].max(), "clipped share": binding})
+    return pd.DataFrame(rows)
 
 
 SMOOTHING_ROUNDS = 3  # rounds of averaging the output with its 1-ring in the "smoothed" drape
@@ -229,6 +267,8 @@ def main(argv=None) -> None:
     ap.add_argument("--optimum", help="with --run: a gaps_optimum run of the same scene, whose drape's terms are added")
     ap.add_argument("--pinned", action="store_true", help="with a gaps_optimum --run: its optimum with the pins held at the reference's")
     ap.add_argument("--frames", type=int, default=None, help="with --pinned: the first N frames only (default: all)")
+    ap.add_argument("--losses", help="a run's losses.csv: its gradient norms' quantiles and the clip's binding rate")
+    ap.add_argument("--clip", type=float, default=None, help="with --losses: the global clip whose binding rate is printed")
     a = ap.parse_args(argv)
     torch.set_num_threads(1)
     if a.run and a.pinned:
@@ -242,10 +282,16 @@ def main(argv=None) -> None:
         print("The network's canonical displacements D: " + ", ".join(f"{k} {v:.2f}" for k, v in stats.items()))
         print("Its last GRU layer's outputs y: " + ", ".join(f"{k} {v:.3g}" for k, v in trunk.items()))
         return
-    table = diagnose(a.garment, a.body, a.budget, a.epoch, a.windows, a.seed)
+    if a.losses:
+        print(f"Gradient norms over the steps of {a.losses} (before clipping) and the share of steps a clip at {a.clip} scales down")
+        print(clip_table(a.losses, a.clip).to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+        return
+    table, grads = diagnose(a.garment, a.body, a.budget, a.epoch, a.windows, a.seed)
     print(f"GAPS loss terms on {a.windows} training windows, {a.garment} on {a.body}, budget {a.budget}, untrained skinning")
     print("value: per the budget's normalisation (the code: J per frame; collision and inertia per window); grad_*: norm of d term / d x per vertex and frame drape, N")
     print(table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+    print("Each term's gradient on the network's weights (what train.grad_clip bounds), at its initial weights")
+    print(grads.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
 
 
 if __name__ == "__main__":
