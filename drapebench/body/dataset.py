@@ -6,14 +6,14 @@ reused; a missing, incomplete, corrupt or outdated file is rebuilt. Held-out mot
 and ``stress`` never appear in training sets) give a split by motion; disjoint per-sequence seeds
 (drawn from each spec's own ``seed``) give a split within a motion. ``train_random_small`` and
 ``train_random`` hold procedural random motion (``motion=random``) with random body shapes, as many
-sequences and frames as ``train_small`` and ``train``.
+sequences and frames as ``train_small`` and ``train``; ``train_gaps`` 60 sequences of named and random motion.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import h5py
@@ -65,6 +65,9 @@ DATASETS: dict[str, DatasetSpec] = {
     "train": DatasetSpec(TRAIN_MOTIONS, per_motion=8, n_frames=150, split="train", seed=0),
     "train_random_small": DatasetSpec(("random",), per_motion=14, n_frames=90, split="train", seed=30000),
     "train_random": DatasetSpec(("random",), per_motion=56, n_frames=150, split="train", seed=30000),
+    # GAPS's self-supervised scale: no simulation, so the public code's 60 sequences; named motions (arm_raise and twist
+    # left out, methods/gaps/README.md) and random motion, 10 sequences of each
+    "train_gaps": DatasetSpec(("walk", "run", "jump", "squat", "dance", "random"), per_motion=10, n_frames=150, split="train", seed=50000),
     "val": DatasetSpec(TRAIN_MOTIONS, per_motion=1, n_frames=120, split="val", seed=5000),
     "test": DatasetSpec(("walk", "run", "jump", "dance") + HELD_OUT_MOTIONS[:1], per_motion=1, n_frames=120, split="test", seed=10000),
     "test_heldout": DatasetSpec(HELD_OUT_MOTIONS, per_motion=2, n_frames=120, split="test", seed=20000),
@@ -93,6 +96,18 @@ def sequence_plan(spec: DatasetSpec) -> list[tuple[str, int, int, np.ndarray]]:
             betas[: spec.n_shape_betas] = np.clip(rng.normal(0, spec.beta_sigma, spec.n_shape_betas), -spec.beta_clip, spec.beta_clip)
             plan.append((motion, k, seed, betas))
     return plan
+
+
+def redrawn(name_or_spec, draw: int) -> DatasetSpec:
+    """A dataset's spec with the same motions, counts and frames but other sequence seeds and body shapes (draw
+    ``draw`` >= 1; 0 is the dataset itself): fresh training motion for a method that needs no simulation."""
+    spec = _resolve(name_or_spec)[1]
+    if spec.split != "train":
+        raise ValueError(f"only training datasets are redrawn, not a {spec.split!r} split")
+    return replace(spec, seed=spec.seed + REDRAW_SEED_STRIDE * int(draw))
+
+
+REDRAW_SEED_STRIDE = 1_000_003  # a redrawn spec's seed: seed + stride x draw (no two named specs' seeds that close)
 
 
 def spec_sequences(spec: DatasetSpec) -> list[BodySequence]:

@@ -21,6 +21,8 @@ TRAIN_DEFAULTS = dict(
     output_adam_eps=1e-8,  # Adam's eps for the output layer (torch's default; the code's Keras default is 1e-7)
     output_smoothing=0,  # rounds of 1-ring averaging of the output layer's gradient over the garment (0: none, the paper)
     exclude_motions=(),  # motions of the training dataset left out of GAPS's training windows
+    redraw_motions=False,  # each epoch after the first trains on a new draw of train.dataset (new motions and shapes)
+    schedule={},  # overrides of the budget (conf/train) for GAPS alone, e.g. {lr: 1.0e-3, grad_clip: 50}
 )
 METHOD_DEFAULTS = dict(
     skinning="rbf",  # rbf | nearest | smoothed

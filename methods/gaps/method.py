@@ -14,6 +14,7 @@ import time
 import numpy as np
 import torch
 
+from drapebench.body.dataset import redrawn, spec_sequences
 from drapebench.body.lbs import lbs
 from drapebench.body.skinning import nearest_body_vertices, nearest_weights
 from drapebench.cache import content_hash
@@ -118,19 +119,15 @@ class GAPS(DrapingMethod):
         self.bind(data.body, data.material)
         train_cfg = dict(train_cfg or {})
         log_dir = train_cfg.pop("log_dir", None)
-        budget = train_config(train_cfg)
         tp = self.p["train"]
+        budget = train_config({**train_cfg, **tp["schedule"]})
         torch.manual_seed(budget.seed)  # before the network is created: initial weights follow the seed
         self._setup(data.garment)
         if len(tp["beta_range"]) > self.body.n_betas:
             raise ValueError(f"method.params.train.beta_range has {len(tp['beta_range'])} entries but the body has {self.body.n_betas} betas")
         seqs = self._training_sequences(data.train_sequences)
-        W = tp["window"]
-        self._windows = [(i, t) for i, s in enumerate(seqs) for t in range(1, s.n_frames - W + 1)]
-        dev, dtype = self.body.device, self.body.dtype  # the training sequences, read on the CPU, moved to the device once
-        self._poses = [s.poses.to(dev, dtype) for s in seqs]
-        self._vels = [root_velocity(s).to(dev, dtype) for s in seqs]
-        self._trans = [s.trans.to(dev, dtype) for s in seqs]
+        self._use_sequences(seqs, 0)
+        self._dataset = budget.dataset
         if self.p["normalize_inputs"]:
             allx = torch.cat([torch.cat([p.reshape(len(p), -1), v], -1) for p, v in zip(self._poses, self._vels)])
             self.input_mean[self.body.n_betas :] = allx.mean(0)
@@ -150,6 +147,19 @@ class GAPS(DrapingMethod):
                 h.remove()
         return FitReport(train_s=res.train_s, n_steps=res.n_steps, final_losses=res.history[-1] if res.history else {},
                          history=res.history, resumed_from=res.resumed_from)  # fmt: skip
+
+    def _use_sequences(self, seqs: list, draw: int) -> None:
+        """Train on ``seqs`` (draw ``draw`` of the dataset, :meth:`_batch`): their windows, poses, root velocities and
+        translations. Raises ValueError if a redraw gives another number of windows than the first draw."""
+        W = self.p["train"]["window"]
+        windows = [(i, t) for i, s in enumerate(seqs) for t in range(1, s.n_frames - W + 1)]
+        if draw and len(windows) != len(self._windows):
+            raise ValueError(f"gaps: draw {draw} of the training dataset has {len(windows)} windows, the first {len(self._windows)}")
+        self._windows, self._draw = windows, draw
+        dev, dtype = self.body.device, self.body.dtype  # the training sequences, read on the CPU, moved to the device once
+        self._poses = [s.poses.to(dev, dtype) for s in seqs]
+        self._vels = [root_velocity(s).to(dev, dtype) for s in seqs]
+        self._trans = [s.trans.to(dev, dtype) for s in seqs]
 
     def _smooth_over_garment(self, grad: torch.Tensor, rounds: int) -> torch.Tensor:
         """The output layer's gradient (3V, H) or (3V,) smoothed over the garment's 1-rings ``rounds`` times
@@ -172,8 +182,11 @@ class GAPS(DrapingMethod):
 
     def _batch(self, items: np.ndarray, at) -> tuple:
         """Windows ``items`` of the training data: random body shapes (B, S), poses (B, W, J, 3), root
-        velocity (B, W, 3) and translation (B, W, 3), and the posed body (no gradient)."""
+        velocity (B, W, 3) and translation (B, W, 3), and the posed body (no gradient). With
+        ``train.redraw_motions``, epoch e >= 1 draws its sequences anew (:func:`drapebench.body.dataset.redrawn`)."""
         body, p, W = self.body, self.p, self.p["train"]["window"]
+        if p["train"]["redraw_motions"] and at.epoch != self._draw:  # a new epoch: new motions and body shapes of the same dataset
+            self._use_sequences(self._training_sequences(spec_sequences(redrawn(self._dataset, at.epoch))), at.epoch)
         batch = [self._windows[j] for j in items]
         B = len(batch)
         betas = torch.zeros(B, body.n_betas, dtype=body.dtype, device=body.device)

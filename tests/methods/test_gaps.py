@@ -1,6 +1,7 @@
 """GAPS on tiny data: learning, finiteness, recurrence, skinning weights, ablations."""
 
 import numpy as np
+import pandas as pd
 import pytest
 import torch
 
@@ -193,6 +194,26 @@ def test_training_motions_can_be_left_out_and_a_wrong_name_is_an_error(scene):
         methods.get("gaps")({"train": {"exclude_motions": ["twist"]}})._training_sequences(mixed)
     with pytest.raises(ValueError, match="leaves none"):
         methods.get("gaps")({"train": {"exclude_motions": ["walk"]}})._training_sequences(seqs)
+
+
+def test_each_epoch_can_train_on_a_new_draw_of_the_dataset_and_the_schedule_overrides_the_budget(scene, monkeypatch):
+    """train.redraw_motions: epoch 1 trains on new sequences of the same dataset spec (other seeds, the same motions and
+    window count), epoch 0 on the dataset itself; train.schedule replaces budget keys (here the rate) for GAPS."""
+    from drapebench.body import dataset
+
+    body, g, _ = scene
+    tiny = dataset.DatasetSpec(("walk", "random"), per_motion=1, n_frames=8, split="train", seed=7, transition=2)
+    monkeypatch.setitem(dataset.DATASETS, "tiny", tiny)
+    first = dataset.spec_sequences(tiny)
+    m = methods.get("gaps")({"train": {"redraw_motions": True, "schedule": {"lr": 3e-4}}})
+    data = TrainData(body=body, material=Material(), garment=g, load_train=lambda: first)
+    rep = m.fit(data, {**QUICK, "epochs": 2, "dataset": "tiny"})
+    assert {h["lr"] for h in rep.history} == {3e-4}
+    assert m._draw == 1 and [s.motion for s in dataset.spec_sequences(dataset.redrawn("tiny", 1))] == ["walk", "random"]
+    assert not any(torch.equal(p, s.poses.to(p.dtype)) for p, s in zip(m._poses, first))  # new motions in epoch 1
+    assert len(m._windows) == sum(s.n_frames - 3 for s in first)  # windows of 3 frames from frame 1 on
+    with pytest.raises(ValueError, match="only training datasets"):
+        dataset.redrawn("test_heldout", 1)
 
 
 def test_ablations_change_what_they_claim(scene):
@@ -435,3 +456,15 @@ def test_the_relaxation_keeps_its_clearance_and_an_ablation_of_inext_can_share_g
     torch.testing.assert_close(shared.relaxed.d, gaps.relaxed.d)
     own = _set_up(body, g, no_inext)
     assert (own.relaxed.d - gaps.relaxed.d).norm(dim=-1).mean() > 1e-4
+
+
+def test_clip_table_reads_the_steps_gradient_norms_and_the_clips_binding_rate(tmp_path):
+    """methods.gaps.diagnose.clip_table: quantiles of the logged norms; the share of steps whose global norm is above
+    the clip (those the clip scales down)."""
+    from methods.gaps.diagnose import clip_table
+
+    norms = np.arange(1.0, 11.0)
+    pd.DataFrame({"step": np.arange(10), "grad_norm": norms, "grad_norm_output": norms / 2}).to_csv(tmp_path / "losses.csv", index=False)
+    t = clip_table(tmp_path / "losses.csv", 8.5).set_index("norm")
+    assert t.loc["grad_norm", "clipped share"] == pytest.approx(0.2) and t.loc["grad_norm", "max"] == 10.0
+    assert t.loc["grad_norm_output", "p50"] == pytest.approx(np.median(norms / 2)) and np.isnan(t.loc["grad_norm_output", "clipped share"])
