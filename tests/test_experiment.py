@@ -113,7 +113,9 @@ def test_the_run_seed_is_the_training_seed_and_a_new_seed_trains_a_new_checkpoin
 
 def test_gaps_reads_its_own_training_keys_per_budget_and_a_wrong_train_key_fails():
     cpu = _compose(["method=gaps"]).method.params.train
-    assert cpu.lr_output_factor == 0.1 and cpu.output_adam_eps == 1.0 and cpu.kext_ramp_epochs == 3 and cpu.window == 3  # gaps_budget/cpu.yaml
+    assert cpu.lr_output_factor == 1.0 and cpu.output_adam_eps == 1e-8 and cpu.kext_ramp_epochs == 2 and cpu.window == 3  # gaps_budget/cpu.yaml
+    assert cpu.redraw_motions and cpu.schedule.lr == 1e-3 and cpu.schedule.lr_after == 1e-4 and cpu.schedule.lr_switch_epoch == 1  # the paper's rates
+    assert _compose(["method=gaps"]).train.dataset == "train_gaps"
     for ablation in ("gaps_kext1", "gaps_no_inext", "snug_like", "ncs_like"):
         paper = _compose([f"method={ablation}", "train=paper"]).method.params.train
         assert paper.lr_output_factor == 1.0 and paper.kext_ramp_epochs == 100, ablation
@@ -128,9 +130,9 @@ def test_gaps_optimum_composes_with_gaps_loss_and_its_solver_settings():
     import methods
 
     cfg = _compose(["method=gaps_optimum"]).method
-    assert cfg.impl == "gaps_optimum" and cfg.params.optimum.solver == "lbfgs" and cfg.params.train.kext_ramp_epochs == 3
+    assert cfg.impl == "gaps_optimum" and cfg.params.optimum.solver == "lbfgs" and cfg.params.train.kext_ramp_epochs == 2
     m = methods.get(cfg.impl)(OmegaConf.to_container(cfg.params, resolve=True))
-    assert m.kext_epoch() == 3 and m.p["inextensibility_weight"] == 2e8  # k_ext at the end of the budget's ramp
+    assert m.kext_epoch() == 2 and m.p["inextensibility_weight"] == 2e8  # k_ext at the end of the budget's ramp
 
 
 def test_training_writes_losses_and_evaluations_csv_into_the_run_directory_and_a_loaded_checkpoint_too(tmp_path, monkeypatch, body_lowres):
@@ -452,7 +454,7 @@ def test_dtype_float64_runs_body_garment_method_and_metrics_in_double(tmp_path, 
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("method", [["method=lbs"], ["method=gaps", "train.epochs=0"]])
+@pytest.mark.parametrize("method", [["method=lbs"], ["method=gaps", "method.params.train.schedule.steps=0"]])
 def test_a_slice_of_the_stability_matrix_is_finite_and_the_same_in_float32_and_float64(tmp_path, method):
     from drapebench.experiment import run
 

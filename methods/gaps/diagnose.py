@@ -50,15 +50,17 @@ def budget_params(budget: str) -> dict:
 
 def diagnose(garment: str, body: str, budget: str = "cpu", epoch: int | None = None, windows: int = 8, seed: int = 0) -> pd.DataFrame:
     """The term table (:func:`drapebench.diagnose.term_table`) of GAPS's loss on ``windows`` random training
-    windows of ``train_small`` (random shapes as in training) at the untrained skinning, k_ext at ``epoch``
+    windows of the budget's dataset (random shapes as in training) at the untrained skinning, k_ext at ``epoch``
     (None: the end of the budget's ramp), and each term's gradient on the network's parameter groups there
     (:func:`parameter_gradients`)."""
     params = budget_params(budget)
+    params["train"]["schedule"] = {}  # no step is taken: the budget's rates and epochs do not matter
     m = methods.get("gaps")(params)
     b = load_body(body)
     g = make_garment(garment, b)
-    data = TrainData(body=b, material=Material(), garment=g, load_train=lambda: H5Sequences(build_dataset("train_small")))
-    m.fit(data, {"epochs": 0, "seed": seed})  # the model's constants and training windows, no step
+    dataset = OmegaConf.load(PROJECT_ROOT / f"conf/train/{budget}.yaml").dataset
+    data = TrainData(body=b, material=Material(), garment=g, load_train=lambda: H5Sequences(build_dataset(dataset)))
+    m.fit(data, {"epochs": 0, "seed": seed, "dataset": dataset})  # the model's constants and training windows, no step
     at = Step(0, m.p["train"]["kext_ramp_epochs"] if epoch is None else epoch, np.random.default_rng(seed))
     betas, pose, vel, tr, out, normals = m._batch(at.rng.choice(len(m._windows), windows, replace=False), at)
     W = m.p["train"]["window"]
