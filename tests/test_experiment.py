@@ -113,8 +113,8 @@ def test_the_run_seed_is_the_training_seed_and_a_new_seed_trains_a_new_checkpoin
 
 def test_gaps_reads_its_own_training_keys_per_budget_and_a_wrong_train_key_fails():
     cpu = _compose(["method=gaps"]).method.params.train
-    assert cpu.lr_output_factor == 1.0 and cpu.output_adam_eps == 1e-8 and cpu.kext_ramp_epochs == 2 and cpu.window == 3  # gaps_budget/cpu.yaml
-    assert cpu.redraw_motions and cpu.schedule.lr == 1e-3 and cpu.schedule.lr_after == 1e-4 and cpu.schedule.lr_switch_epoch == 1  # the paper's rates
+    assert cpu.lr_output_factor == 0.1 and cpu.output_adam_eps == 1.0 and cpu.kext_ramp_epochs == 2 and cpu.window == 3  # gaps_budget/cpu.yaml
+    assert cpu.redraw_motions and cpu.schedule.lr == 1e-3 and cpu.schedule.lr_after == 1e-4 and cpu.schedule.grad_clip == 90.0  # the paper's rates
     assert _compose(["method=gaps"]).train.dataset == "train_gaps"
     for ablation in ("gaps_kext1", "gaps_no_inext", "snug_like", "ncs_like"):
         paper = _compose([f"method={ablation}", "train=paper"]).method.params.train
