@@ -78,6 +78,19 @@ CHECKPOINTS = Cache("checkpoints", 1)
 EVALUATIONS = Cache("evaluations", 1)
 
 
+def command_line_train_keys() -> set[str]:
+    """The ``train.<key>`` names set on the command line (Hydra's task overrides, ``+``/``++`` included); empty
+    outside a Hydra job. A method's own budget (``method.params.train.schedule``) never overrides them."""
+    try:
+        from hydra.core.hydra_config import HydraConfig
+
+        overrides = HydraConfig.get().overrides.task
+    except ValueError:  # not inside a Hydra job
+        return set()
+    keys = (o.split("=", 1)[0].lstrip("+~") for o in overrides)
+    return {k.split(".")[1] for k in keys if k.startswith("train.") and k.count(".") >= 1}
+
+
 def warn_untrained_shape(betas, train_cfg: dict, method_params: dict, method: str) -> list[int]:
     """Warn (and return the indices) when test ``betas`` (S,) leave the range ``method`` was trained on:
     ``method.params.train.beta_range`` (per component, U(-r, r)) if it sets one, else the training dataset's
@@ -287,7 +300,12 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     if reference is not None:
         stages["reference_s"] = time.perf_counter() - t
 
-    method = method_cls(OmegaConf.to_container(cfg.method.params, resolve=True))
+    params = OmegaConf.to_container(cfg.method.params, resolve=True)
+    schedule = params.get("train", {}).get("schedule") if isinstance(params.get("train"), dict) else None
+    for key in command_line_train_keys() & set(schedule or {}):  # what the user typed wins over a method's own budget
+        log.info("train.%s from the command line replaces method.params.train.schedule.%s", key, key)
+        schedule.pop(key)
+    method = method_cls(params)
     train_cfg = OmegaConf.to_container(cfg.train, resolve=True)
 
     data = scene.train_data(method, run_body)

@@ -67,6 +67,7 @@ def test_the_package_imports_and_gaps_trains_and_is_evaluated_without_the_extras
     rec = json.loads((out / "metrics.json").read_text())
     assert rec["method"] == "gaps" and rec["train_s"] > 0 and all(math.isfinite(rec[k]) for k in ("eps_e", "eps_c", "penetration_mm"))
     assert "take the exact libigl path" in (out / "run.log").read_text()  # eps_c without warp's BVH
+    assert (out / "losses.csv").read_text().strip().count("\n") == 2  # train.steps=2 as typed: not GAPS's own schedule
     p = subprocess.run([sys.executable, str(ROOT / "run.py"), *scene[:1], "viz=rerun", f"hydra.run.dir={tmp_path / 'viz'}"],
                        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)  # fmt: skip
     assert p.returncode != 0 and "pip install 'drapebench[viz]'" in p.stderr
