@@ -29,7 +29,8 @@ def test_every_heavy_package_has_an_extra():
 def test_a_missing_extra_is_named_with_its_install(monkeypatch):
     from drapebench.viz import require_rerun
 
-    monkeypatch.setitem(sys.modules, "rerun", None)  # rerun-sdk not installed
+    for name in ("rerun", "rerun.blueprint"):  # rerun-sdk not installed (an earlier test may have imported both)
+        monkeypatch.setitem(sys.modules, name, None)
     with pytest.raises(MissingExtra, match=r"^viz=rerun .* needs rerun-sdk, which is not installed: pip install 'drapebench\[viz\]'"):
         require_rerun("rerun.blueprint")
     monkeypatch.setitem(sys.modules, "pymeshlab", None)
