@@ -88,7 +88,7 @@ def command_line_train_keys() -> set[str]:
     except ValueError:  # not inside a Hydra job
         return set()
     keys = (o.split("=", 1)[0].lstrip("+~") for o in overrides)
-    return {k.split(".")[1] for k in keys if k.startswith("train.") and k.count(".") >= 1}
+    return {k.split(".")[1] for k in keys if k.startswith("train.")}
 
 
 def warn_untrained_shape(betas, train_cfg: dict, method_params: dict, method: str) -> list[int]:
