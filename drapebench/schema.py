@@ -136,6 +136,7 @@ class DataConf:
     settings: Dict[str, Any] = field(default_factory=dict)  # overrides of conf/reference/<solver>.yaml
     body: Optional[str] = None  # collider body; None: the run's body
     n_jobs: int = 1
+    replace_failed: int = 0  # replacement draws per failed sequence
     allow_held_out: bool = False  # kick and stress are test motions
 
 

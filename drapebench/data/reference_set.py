@@ -8,7 +8,9 @@ random body shapes, deterministic in ``seed``), simulates each with
 after an interruption simulates only the sequences not done yet. A simulation that fails
 (:class:`~drapebench.reference.SimulationDiverged`, the garment leaving the body, a garment starting
 inside a body shape) is never cached: it is recorded in the set's manifest (``data/cache/reference_sets``,
-garment, sequence, cause) and skipped, also by later runs, until ``force``.
+garment, sequence, cause) and skipped, also by later runs, until ``force``; its place in the set goes to a
+replacement (:func:`replacement_sequence`: the same motion kind and body shape, another seed), up to
+``replace_failed`` tries per place, each failure recorded.
 
 Presets are ``conf/data/<name>.yaml`` (``data=cpu`` small, the default; ``data=paper`` large, for a GPU);
 by hand: ``python -m drapebench.data.reference_set --garment tshirt --body anny --data cpu --jobs 2``; on a
@@ -29,8 +31,8 @@ import numpy as np
 import torch
 import yaml
 
-from drapebench.body.dataset import HELD_OUT_MOTIONS, DatasetSpec, spec_sequences
-from drapebench.body.sequence import DEFAULT_TRANSITION
+from drapebench.body.dataset import HELD_OUT_MOTIONS, REDRAW_SEED_STRIDE, DatasetSpec, spec_sequences
+from drapebench.body.sequence import DEFAULT_TRANSITION, make_sequence
 from drapebench.cache import PROJECT_ROOT, Cache
 from drapebench.data.references import References, read_drape
 from drapebench.keys import check_known
@@ -48,7 +50,8 @@ class ReferenceSetSpec:
     and shapes drawn from ``seed``; ``params`` per motion (e.g. ``{"random": {"amplitude": 0.8}}``).
     Simulated by ``solver`` with ``settings`` overriding ``conf/reference/<solver>.yaml``, against the
     collider ``body`` (a body name; None: the body the garment is draped on); ``n_jobs`` worker
-    processes. The held-out test motions (kick, stress) are refused unless ``allow_held_out``."""
+    processes; a failed sequence is replaced by up to ``replace_failed`` new draws of its motion kind.
+    The held-out test motions (kick, stress) are refused unless ``allow_held_out``."""
 
     name: str = "custom"
     motions: tuple[str, ...] = ("random",)
@@ -65,6 +68,7 @@ class ReferenceSetSpec:
     settings: dict = field(default_factory=dict)
     body: str | None = None
     n_jobs: int = 1
+    replace_failed: int = 0
     allow_held_out: bool = False
 
     def __post_init__(self) -> None:
@@ -73,6 +77,8 @@ class ReferenceSetSpec:
         if held and not self.allow_held_out:
             raise ValueError(f"reference set {self.name!r} asks for held-out test motion(s) {held}: training data must not "
                              "see them; drop them from motions or set allow_held_out=true")  # fmt: skip
+        if int(self.replace_failed) < 0:
+            raise ValueError(f"data.replace_failed must be >= 0 (replacement draws per failed sequence), got {self.replace_failed}")
         if int(self.per_motion) < 1 or int(self.n_frames) < 1 or int(self.n_jobs) < 1:
             raise ValueError(f"reference set {self.name!r} needs per_motion, n_frames and n_jobs >= 1, got "
                              f"{self.per_motion}, {self.n_frames}, {self.n_jobs}")  # fmt: skip
@@ -105,7 +111,8 @@ class ReferenceSetSpec:
 class ReferenceSet:
     """The successful drapes of a reference set: ``set[i]`` is (BodySequence, vertices (T, V, 3) float32 m),
     read from the reference cache on each access; ``sequences`` those sequences; ``failed`` one dict per
-    failed simulation (garment, sequence, error, cause); ``planned`` every planned sequence;
+    failed simulation (garment, sequence, error, cause; replacements' failures included); ``planned`` one
+    sequence per place of the plan (the planned one or, where it failed, its last replacement);
     ``sim_s`` the original simulation time of the successful drapes; ``wall_s`` this build's wall time."""
 
     garment: str
@@ -150,6 +157,15 @@ def sequence_failure(garment, seq, err: Exception) -> dict:
             "attempts": getattr(err, "attempts", None)}  # fmt: skip
 
 
+def replacement_sequence(seq, attempt: int):
+    """The ``attempt``-th (>= 1) replacement of a planned sequence whose simulation failed: the same motion kind,
+    parameters, length, transition and body shape, the seed moved by ``attempt`` x the redraw stride, named
+    ``<name>_r<attempt>``."""
+    n_transition = int(seq.n_transition)
+    return make_sequence(seq.motion, len(seq.poses) - n_transition, seq.fps, seq.seed + REDRAW_SEED_STRIDE * int(attempt), betas=seq.betas,
+                         transition=n_transition, split=seq.split, name=f"{seq.name}_r{attempt}", **seq.params)  # fmt: skip
+
+
 def simulate_one(garment, seq, body, material, spec: ReferenceSetSpec, force: bool = False, threads: int | None = None) -> dict:
     """Simulate (or load) the drape of ``garment`` on ``seq`` against the collider ``body`` in this process (a worker
     or a cluster job; ``threads`` torch threads); a dict with the cache path, the original simulation time and
@@ -188,40 +204,48 @@ def build_reference_set(garment, body, material, spec: ReferenceSetSpec, n_jobs:
 
     t0 = time.perf_counter()
     collider = load_body(spec.body) if spec.body else body
-    seqs = spec_sequences(spec.dataset_spec())
-    paths = [str(reference_path(garment, seq, collider, material, spec.solver, **spec.settings)) for seq in seqs]
+    planned = spec_sequences(spec.dataset_spec())
+    paths = [str(reference_path(garment, seq, collider, material, spec.solver, **spec.settings)) for seq in planned]
     manifest_path = MANIFESTS.path(garment.name, paths, prefix=f"{garment.name}_{spec.name}", suffix=".json")
     manifest = None if force else MANIFESTS.load(manifest_path, lambda p: json.loads(Path(p).read_text()))
     failed = {f["sequence"]: f for f in (manifest or {}).get("failed", [])}
-    todo = [seq for seq in seqs if seq.name not in failed]
     n_jobs = int(n_jobs or spec.n_jobs)
     threads = max(1, (os.cpu_count() or 1) // n_jobs) if n_jobs > 1 else None
     done: dict[str, dict] = {}
+    seqs = list(planned)  # per place in the plan: the planned sequence or its latest replacement
 
     def save() -> None:
         doc = {"garment": garment.name, "spec": asdict(spec), "failed": list(failed.values()),
                "done": [done[s.name] for s in seqs if s.name in done]}  # fmt: skip
         MANIFESTS.store(manifest_path, lambda tmp: Path(tmp).write_text(json.dumps(doc, indent=2)))
 
-    jobs = (delayed(simulate_one)(garment, seq, collider, material, spec, force, threads) for seq in todo)
-    bar = progress_bar(total=len(todo), desc=f"references {garment.name} {spec.name}", unit="seq") if progress else None
-    try:
-        for result in Parallel(n_jobs=n_jobs, return_as="generator_unordered")(jobs):
-            if "path" in result:
-                done[result["sequence"]] = result
-            else:
-                failed[result["sequence"]] = result
-                save()
+    for attempt in range(int(spec.replace_failed) + 1):
+        if attempt:
+            seqs = [replacement_sequence(orig, attempt) if seq.name in failed else seq for orig, seq in zip(planned, seqs)]
+        todo = [seq for seq in seqs if seq.name not in failed and seq.name not in done]
+        if not todo:
+            if any(seq.name in failed for seq in seqs):
+                continue  # every replacement of this round failed before (recorded): the next round's
+            break
+        jobs = (delayed(simulate_one)(garment, seq, collider, material, spec, force, threads) for seq in todo)
+        desc = f"references {garment.name} {spec.name}" + (f" (replacements, round {attempt})" if attempt else "")
+        bar = progress_bar(total=len(todo), desc=desc, unit="seq") if progress else None
+        try:
+            for result in Parallel(n_jobs=n_jobs, return_as="generator_unordered")(jobs):
+                if "path" in result:
+                    done[result["sequence"]] = result
+                else:
+                    failed[result["sequence"]] = result
+                    save()
+                if bar is not None:
+                    bar.update(1)
+                    bar.set_postfix(ok=len(done), failed=len(failed))
+        finally:
             if bar is not None:
-                bar.update(1)
-                bar.set_postfix(ok=len(done), failed=len(failed))
-    finally:
-        if bar is not None:
-            bar.close()
+                bar.close()
     save()
-    return ReferenceSet(garment.name, spec, seqs, {name: r["path"] for name, r in done.items()},
-                        [failed[s.name] for s in seqs if s.name in failed], sum(r["sim_s"] for r in done.values()),
-                        time.perf_counter() - t0)  # fmt: skip
+    return ReferenceSet(garment.name, spec, seqs, {name: r["path"] for name, r in done.items()}, list(failed.values()),
+                        sum(r["sim_s"] for r in done.values()), time.perf_counter() - t0)  # fmt: skip
 
 
 def collect_reference_set(garment, body, material, spec: ReferenceSetSpec) -> tuple[ReferenceSet, list]:
@@ -237,18 +261,23 @@ def collect_reference_set(garment, body, material, spec: ReferenceSetSpec) -> tu
             return json.loads(str(data["meta"]))
 
     collider = load_body(spec.body) if spec.body else body
-    seqs = spec_sequences(spec.dataset_spec())
-    paths, failed, missing, sim_s = {}, [], [], 0.0
-    for seq in seqs:
-        path = reference_path(garment, seq, collider, material, spec.solver, **spec.settings)
-        meta = REFERENCES.load(path, read_meta)
-        failure = None if meta is not None else recorded_failure(path)
-        if meta is not None:
-            paths[seq.name], sim_s = str(path), sim_s + sum(meta["timings_s"].values())
-        elif failure is not None:
-            failed.append(sequence_failure(garment, seq, failure))
-        else:
-            missing.append(seq)
+    seqs, paths, failed, missing, sim_s = [], {}, [], [], 0.0
+    for planned in spec_sequences(spec.dataset_spec()):
+        for attempt in range(int(spec.replace_failed) + 1):  # the planned sequence, then its replacements in turn
+            seq = replacement_sequence(planned, attempt) if attempt else planned
+            path = reference_path(garment, seq, collider, material, spec.solver, **spec.settings)
+            meta = REFERENCES.load(path, read_meta)
+            failure = None if meta is not None else recorded_failure(path)
+            if meta is not None:
+                paths[seq.name], sim_s = str(path), sim_s + sum(meta["timings_s"].values())
+            elif failure is not None:
+                failed.append(sequence_failure(garment, seq, failure))
+                if attempt < int(spec.replace_failed):
+                    continue
+            else:
+                missing.append(seq)
+            break
+        seqs.append(seq)
     return ReferenceSet(garment.name, spec, seqs, paths, failed, sim_s), missing
 
 

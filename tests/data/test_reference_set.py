@@ -111,3 +111,36 @@ def test_a_short_real_simulation_through_newton(garment, body_lowres, monkeypatc
     assert x.shape == (3, garment.n_vertices, 3) and torch.isfinite(x).all()
     step = (x[1:] - x[:-1]).norm(dim=-1)
     assert float(step.max()) > 0 and float(step.max()) < 0.1  # it moved, and by less than 10 cm a frame
+
+
+def test_a_failed_sequence_is_replaced_by_a_new_draw_of_its_motion_and_each_failure_recorded(garment, body_lowres, monkeypatch, tmp_path):
+    """A failed place of the plan goes to ``<name>_r1``, ``_r2``... (same motion and shape, another seed) until one
+    succeeds or ``replace_failed`` tries are spent; a rebuild and the cache's account find the same set."""
+    monkeypatch.setenv("DRAPEBENCH_DATA", str(tmp_path))
+    calls = []
+
+    def run(garment, seq, body, material, settings, show_progress):
+        calls.append(seq.name)
+        if seq.name in ("train_random_001", "train_random_001_r1"):
+            raise SimulationDiverged(garment.name, seq.name, 1, seq.n_frames, "test blow-up", settings)
+        x = garment.vertices.numpy()[None] + 1e-3 * float(seq.poses[-1].abs().sum()) * np.arange(seq.n_frames)[:, None, None]
+        return x.astype(np.float32), {"setup": 1.0, "settle": 0.0, "sequence": 2.0}, {"max_speed": 0.1}
+
+    monkeypatch.setattr(sim, "_run", run)
+    spec = ReferenceSetSpec(**{**SPEC.__dict__, "replace_failed": 2})
+    refs = build_reference_set(garment, body_lowres, Material(), spec, progress=False)
+    names = ["train_random_000", "train_random_001_r2", "train_walk_000", "train_walk_001"]
+    assert [s.name for s in refs.sequences] == names and len(refs) == 4
+    assert [f["sequence"] for f in refs.failed] == ["train_random_001", "train_random_001_r1"]
+    original, replaced = [s for s in spec_sequences(SPEC.dataset_spec()) if s.name == "train_random_001"][0], refs.sequences[1]
+    assert replaced.motion == original.motion and torch.equal(replaced.betas, original.betas)
+    assert replaced.poses.shape == original.poses.shape and not torch.equal(replaced.poses, original.poses)
+    n_calls = len(calls)
+    again = build_reference_set(garment, body_lowres, Material(), spec, progress=False)
+    assert len(calls) == n_calls and [s.name for s in again.sequences] == names  # cached drapes, recorded failures
+    cached, missing = collect_reference_set(garment, body_lowres, Material(), spec)
+    assert not missing and [s.name for s in cached.sequences] == names and len(cached.failed) == 2
+    one_try = build_reference_set(garment, body_lowres, Material(), ReferenceSetSpec(**{**SPEC.__dict__, "replace_failed": 1}), progress=False)
+    assert len(one_try) == 3 and [f["sequence"] for f in one_try.failed] == ["train_random_001", "train_random_001_r1"]
+    with pytest.raises(ValueError, match="data.replace_failed must be >= 0"):
+        ReferenceSetSpec(replace_failed=-1)
