@@ -53,7 +53,8 @@ class Objective:
 
     name: label of the progress bar, messages and checkpoint files.
     param_groups: ``[{"params": [tensors], "lr_factor": f}, ...]``; each group learns at f x the scheduled rate,
-        with Adam's ``eps`` if the group gives one (else torch's 1e-8); a group with a ``name`` has its gradient's
+        with Adam's ``eps`` and ``weight_decay`` (an L2 penalty's gradient, per unit weight) if the group gives them
+        (else torch's 1e-8 and 0); a group with a ``name`` has its gradient's
         norm before clipping logged per step as ``grad_norm_<name>``.
     n_items: training items (e.g. windows of frames) in one epoch; batches are shuffled indices into them.
     batch: (item indices (b,), Step) -> a batch, whatever ``loss_terms`` takes.
@@ -119,7 +120,8 @@ def train(objective: Objective, cfg: Mapping[str, Any] | TrainConf | None, log_d
         raise ValueError(f"{ob.name}: no training items (empty training data)")
     steps_per_epoch = max(1, math.ceil(ob.n_items / cfg.batch_size))
     total = int(cfg.steps) if cfg.steps is not None else steps_per_epoch * int(cfg.epochs)
-    opt = torch.optim.Adam([{"params": g["params"], "factor": g["lr_factor"], "eps": g.get("eps", 1e-8)} for g in ob.param_groups], lr=cfg.lr)
+    opt = torch.optim.Adam([{"params": g["params"], "factor": g["lr_factor"], "eps": g.get("eps", 1e-8), "weight_decay": g.get("weight_decay", 0.0)}
+                            for g in ob.param_groups], lr=cfg.lr)  # fmt: skip
     named = [(g["name"], g["params"]) for g in ob.param_groups if "name" in g]
     params = [p for g in opt.param_groups for p in g["params"]]
     device = params[0].device  # the run's device: the objective's tensors live there

@@ -40,8 +40,11 @@ REGRESSOR_DEFAULTS = dict(
     root="world",  # root translation velocity/acceleration: world (3 components, the paper's text) | vertical (z only, the public model)
     pose_steps=1500,  # training steps of the pose descriptor's autoencoder (batch 256)
     pose_sequences=16,  # generated sequences per motion kind of the training sequences that the pose descriptor also trains on (0: the training poses only)
+    predict="gru",  # gru (the paper) | mean_code: every frame decodes the training codes' mean (vae_mean_code, a control)
     hidden=256,
     layers=2,
+    dropout=0.0,  # between the GRU's layers (the paper states none)
+    weight_decay=0.0,  # L2 penalty on the regressor's weights, Adam's (the paper states none)
     window=30,  # frames per training window (the GRU starts from a zero state)
     window_stride=5,  # frames between the starts of consecutive training windows
     select="last",  # last: the last epoch's weights (the paper) | validation: the epoch's whose decoded codes are closest (mm) to the held-out validation sequences' garments (val_sequences)
@@ -56,7 +59,7 @@ METHOD_DEFAULTS = dict(
     projection=PROJECTION_DEFAULTS,
     vae=VAE_DEFAULTS,
     regressor=REGRESSOR_DEFAULTS,
-    val_sequences=1,  # reference sequences held out of training: the validation set of Fig. 4
+    val_sequences=3,  # reference sequences held out of training, spread over the motion kinds: the validation set of Fig. 4 and of the regressor
 )
 
 
@@ -66,7 +69,8 @@ def vae_params(cfg: Mapping[str, Any] | None) -> dict:
     p = method_params("vae", cfg, METHOD_DEFAULTS, {"projection": PROJECTION_DEFAULTS, "vae": VAE_DEFAULTS,
                                                      "regressor": REGRESSOR_DEFAULTS})  # fmt: skip
     for section, key, allowed in (("projection", "init", ("inverse_skinning", "previous")), ("regressor", "pose", ("learned", "rotations")),
-                                  ("regressor", "root", ("world", "vertical")), ("regressor", "select", ("validation", "last"))):  # fmt: skip
+                                  ("regressor", "root", ("world", "vertical")), ("regressor", "select", ("validation", "last")),
+                                  ("regressor", "predict", ("gru", "mean_code"))):  # fmt: skip
         if p[section][key] not in allowed:
             raise ValueError(f"vae parameter {section}.{key} must be one of {', '.join(allowed)}, not {p[section][key]!r}")
     scale = p["vae"]["sample_scale"]
@@ -74,9 +78,11 @@ def vae_params(cfg: Mapping[str, Any] | None) -> dict:
         raise ValueError(f"vae parameter vae.sample_scale must be prior, codes or a positive number, not {scale!r}")
     if not 0 <= float(p["vae"]["kl_warmup"]) < 1:
         raise ValueError(f"vae parameter vae.kl_warmup must be a fraction of the steps in [0, 1), got {p['vae']['kl_warmup']}")
-    for key, least in (("pose_sequences", 0), ("window_stride", 1)):
-        if int(p["regressor"][key]) < least:
+    for key, least in (("pose_sequences", 0), ("window_stride", 1), ("dropout", 0), ("weight_decay", 0)):
+        if float(p["regressor"][key]) < least:
             raise ValueError(f"vae parameter regressor.{key} must be >= {least}, got {p['regressor'][key]}")
+    if not float(p["regressor"]["dropout"]) < 1:
+        raise ValueError(f"vae parameter regressor.dropout must be in [0, 1), got {p['regressor']['dropout']}")
     if int(p["regressor"]["betas"]) < 0:
         raise ValueError(f"vae parameter regressor.betas must be >= 0 (leading shape components), got {p['regressor']['betas']}")
     if int(p["vae"]["latent"]) < 1:

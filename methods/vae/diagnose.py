@@ -5,8 +5,9 @@ Run: python -m methods.vae.diagnose <run directory of a vae run> [...]
 Per run (its config.yaml and checkpoint), the mean vertex distance to the reference drape (mm, frames after the
 transition) of: ``regressed``, the drape (regressor -> decoder -> posing); ``oracle code``, the decoder's output for
 the encoder's posterior mean of the reference's own canonical projection, posed (the best drape the regressor
-could ask of this decoder); ``canonical``, the reference's canonical projection posed again (what the canonical
-space itself costs). ``code gap`` is the distance between the regressed and the oracle codes in units of the
+could ask of this decoder); ``mean code``, the training codes' mean decoded and posed at every frame (the
+regressor's control, run as ``method=vae_mean_code``); ``canonical``, the reference's canonical projection posed
+again (what the canonical space itself costs). ``code gap`` is the distance between the regressed and the oracle codes in units of the
 training codes' std per dimension (RMS over dimensions, mean over frames): a large gap with a small oracle error
 puts the error in the regressor.
 
@@ -48,8 +49,9 @@ def diagnose(run_dir: Path) -> dict[str, float]:
         oracle, _ = m.vae.encode(X)
         regressed = m.regressor(m._descriptor(seq)[None])[0][0]
         gap = ((regressed - oracle) / m.vae.code_std).pow(2).mean(-1).sqrt()[start:].mean()
+        mean_code = m.vae.decode(m.vae.code_mean.expand(len(X), -1))
         return {"regressed": error(m.drape(run.garment, seq).vertices), "oracle code": error(_posed(m, m.vae.decode(oracle), seq)),
-                "canonical": error(_posed(m, X, seq)), "code gap": float(gap)}  # fmt: skip
+                "mean code": error(_posed(m, mean_code, seq)), "canonical": error(_posed(m, X, seq)), "code gap": float(gap)}  # fmt: skip
 
 
 def retrained_error(run_dir: Path, regressor: dict, seed: int) -> float:

@@ -86,6 +86,10 @@ class VAEModel(DrapingMethod):
         v = self.p["vae"]
         return GarmentVAE(n_vertices, int(v["latent"]), v["hidden"], v["logvar_init"]).to(self.body.device, self.body.dtype)
 
+    def _new_regressor(self, n_in: int) -> Regressor:
+        r = self.p["regressor"]
+        return Regressor(n_in, self.vae.latent, int(r["hidden"]), int(r["layers"]), float(r["dropout"])).to(self.body.device, self.body.dtype)
+
     def _pose_code(self):
         return None if self.pose is None else self.pose.code
 
@@ -110,17 +114,30 @@ class VAEModel(DrapingMethod):
         self.topology = garment.topology.to(device=self.body.device)
         self.template = self._canonical_template(garment)
         seqs, X = self.training_garments(garment, data)
-        n_val = int(self.p["val_sequences"])
-        res = self._train_vae(X[:-n_val].flatten(0, 1), X[-n_val:].flatten(0, 1), train_cfg, log_dir)
+        train_idx, val_idx = self.validation_split(seqs)
+        res = self._train_vae(X[train_idx].flatten(0, 1), X[val_idx].flatten(0, 1), train_cfg, log_dir)
         self.evaluations = res.evaluations
         history = [{"stage": "vae", **h} for h in res.history] + self.fit_regressor(seqs, X, train_cfg, log_dir)
         final = {k: v for k, v in history[-1].items() if k != "stage"} if history and history[-1]["stage"] == "regressor" else {}
         return FitReport(train_s=time.perf_counter() - t0, n_steps=len(history), final_losses=final, history=history,
                          evaluations=self.evaluations)  # fmt: skip
 
+    def validation_split(self, seqs) -> tuple[list[int], list[int]]:
+        """Positions of the training and the validation sequences among ``seqs``: ``val_sequences`` of them held
+        out, spread over the motion kinds (the last sequence of each kind in turn, then the second last...)."""
+        n_val = int(self.p["val_sequences"])
+        if not 1 <= n_val < len(seqs):
+            raise ValueError(f"vae: val_sequences must be in [1, {len(seqs) - 1}] for {len(seqs)} reference sequences, got {n_val}")
+        by_kind: dict[str, list[int]] = {}
+        for i, seq in enumerate(seqs):
+            by_kind.setdefault(seq.motion, []).append(i)
+        turns = [positions[-k] for k in range(1, len(seqs) + 1) for positions in by_kind.values() if k <= len(positions)]
+        val = sorted(turns[:n_val])
+        return [i for i in range(len(seqs)) if i not in val], val
+
     def training_garments(self, garment, data) -> tuple[list, torch.Tensor]:
         """The training sequences of ``data`` that have a reference drape of ``garment`` and their canonical
-        projections X (N, T, V, 3) m (cached by content); the last ``val_sequences`` are the validation set.
+        projections X (N, T, V, 3) m (cached by content); :meth:`validation_split` picks the validation set.
         Raises ValueError with fewer than 2."""
         seqs = [s for s in data.train_sequences if data.reference(garment, s) is not None]
         if len(seqs) < 2:
@@ -130,15 +147,21 @@ class VAEModel(DrapingMethod):
 
     def fit_regressor(self, seqs, X: torch.Tensor, train_cfg: dict, log_dir=None) -> list[dict]:
         """Train the pose descriptor (if learned) and the regressor on the trained VAE's posterior means of the
-        canonical garments X (N, T, V, 3) m of ``seqs``, the last ``val_sequences`` held out for validation.
-        Returns the training records, each with its ``stage`` (pose, regressor)."""
-        n_val = int(self.p["val_sequences"])
+        canonical garments X (N, T, V, 3) m of ``seqs``, the :meth:`validation_split`'s sequences held out for
+        validation; nothing with ``regressor.predict: mean_code``. Returns the training records, each with its
+        ``stage`` (pose, regressor)."""
+        train_idx, val_idx = self.validation_split(seqs)
+        if self.p["regressor"]["predict"] == "mean_code":  # the control: nothing to train
+            self.pose = self.regressor = None
+            self._n_in = 0
+            return []
         with torch.no_grad():  # (N - n_val, T, latent): the posterior means
-            codes = torch.stack([self.vae.encode(x)[0] for x in X[:-n_val]])
+            codes = torch.stack([self.vae.encode(X[i])[0] for i in train_idx])
+        train_seqs = [seqs[i] for i in train_idx]
         history = []
         if self.p["regressor"]["pose"] == "learned":
-            history += [{"stage": "pose", **h} for h in self._train_pose(seqs[:-n_val], train_cfg).history]
-        res = self._train_regressor(seqs[:-n_val], codes, train_cfg, log_dir, (seqs[-n_val:], X[-n_val:]))
+            history += [{"stage": "pose", **h} for h in self._train_pose(train_seqs, train_cfg).history]
+        res = self._train_regressor(train_seqs, codes, train_cfg, log_dir, ([seqs[i] for i in val_idx], X[val_idx]))
         return history + [{"stage": "regressor", **h} for h in res.history]
 
     def _project(self, garment, seqs, drapes) -> Projection:
@@ -262,7 +285,7 @@ class VAEModel(DrapingMethod):
         desc = torch.stack([self._descriptor(s) for s in seqs])  # (N, T, D)
         self._n_in = desc.shape[-1]
         torch.manual_seed(budget.seed)
-        self.regressor = Regressor(self._n_in, self.vae.latent, int(r["hidden"]), int(r["layers"])).to(self.body.device, self.body.dtype)
+        self.regressor = self._new_regressor(self._n_in)
         with torch.no_grad():
             flat = desc.flatten(0, 1)
             self.regressor.input_mean.copy_(flat.mean(0))
@@ -279,7 +302,7 @@ class VAEModel(DrapingMethod):
             val_desc = [self._descriptor(s)[None] for s in validation[0]]
 
             def evaluate():
-                decoded = [self.vae.decode(self.regressor(d)[0][0]) for d in val_desc]
+                decoded = [self.vae.decode(self.regressor.eval()(d)[0][0]) for d in val_desc]
                 error = 1e3 * float(torch.stack([(x - X).norm(dim=-1).mean() for x, X in zip(decoded, validation[1])]).mean())
                 if error < best["error"]:
                     best.update(error=error, state=copy.deepcopy(self.regressor.state_dict()), epoch=len(best.get("errors", [])))
@@ -287,9 +310,11 @@ class VAEModel(DrapingMethod):
                 return {"val_error_mm": error}
 
         key = content_hash(r, budget, desc, codes, None if validation is None else validation[1], "regressor")
-        objective = Objective("vae_regressor", [{"params": list(self.regressor.parameters()), "lr_factor": 1.0}], len(starts),
-                              batch, lambda b, at: losses.regressor_terms(self.regressor(b[0])[0], b[1], r), key, evaluate)  # fmt: skip
+        group = {"params": list(self.regressor.parameters()), "lr_factor": 1.0, "weight_decay": float(r["weight_decay"])}
+        objective = Objective("vae_regressor", [group], len(starts),
+                              batch, lambda b, at: losses.regressor_terms(self.regressor.train()(b[0])[0], b[1], r), key, evaluate)  # fmt: skip
         res = train(objective, budget, log_dir=None if log_dir is None else f"{log_dir}/regressor")
+        self.regressor.eval()  # dropout off from here on
         if r["select"] == "validation" and best["state"] is not None:
             self.regressor.load_state_dict(best["state"])
             log.info("vae regressor: kept epoch %d of %d (validation garments %.2f mm from the decoded codes; last epoch %.2f mm)", best["epoch"] + 1,
@@ -298,9 +323,11 @@ class VAEModel(DrapingMethod):
 
     # ------------------------------------------------------------------ inference
     def drape(self, garment, seq) -> DrapeResult:
-        """Regress the latent code per frame, decode it to the canonical garment and pose it with the diffused body."""
+        """Regress the latent code per frame (``regressor.predict: mean_code``: the training codes' mean), decode it
+        to the canonical garment and pose it with the diffused body."""
         self._require_bound()
-        if self.vae is None or self.regressor is None:
+        mean_code = self.p["regressor"]["predict"] == "mean_code"
+        if self.vae is None or (self.regressor is None and not mean_code):
             raise RuntimeError("vae: call fit(data) or load_state_dict(...) before drape()")
         if garment.n_vertices != self.template.shape[0]:
             raise ValueError(f"vae model was trained for a garment of {self.template.shape[0]} vertices, "
@@ -308,8 +335,11 @@ class VAEModel(DrapingMethod):
         timings: dict[str, float] = {}
         body = self.body
         with torch.no_grad():
-            desc = _timed(timings, "descriptor", self._descriptor, seq)
-            z = _timed(timings, "regressor", lambda: self.regressor(desc[None])[0][0])
+            if mean_code:
+                z = self.vae.code_mean.expand(len(seq.poses), -1)
+            else:
+                desc = _timed(timings, "descriptor", self._descriptor, seq)
+                z = _timed(timings, "regressor", lambda: self.regressor(desc[None])[0][0])
             X = _timed(timings, "decoder", self.vae.decode, z)
             A = _timed(timings, "body", lambda: seq.transforms(body).to(body.dtype))
             betas = self.body.full_betas(seq.betas)
@@ -342,7 +372,8 @@ class VAEModel(DrapingMethod):
 
     # ------------------------------------------------------------------ state
     def state_dict(self) -> dict:
-        return {"vae": self.vae.state_dict(), "regressor": self.regressor.state_dict(), "pose": None if self.pose is None else self.pose.state_dict(),
+        return {"vae": self.vae.state_dict(), "regressor": None if self.regressor is None else self.regressor.state_dict(),
+                "pose": None if self.pose is None else self.pose.state_dict(),
                 "n_vertices": self.template.shape[0], "n_in": self._n_in, "template": self.template,
                 "evaluations": self.evaluations, "projection_stats": self.projection_stats}  # fmt: skip
 
@@ -358,6 +389,8 @@ class VAEModel(DrapingMethod):
             self.pose = PoseDescriptor(self.body.n_joints, int(r["pose_code"])).to(self.body.device, self.body.dtype)
             self.pose.load_state_dict(state["pose"])
         self._n_in = int(state["n_in"])
-        self.regressor = Regressor(self._n_in, self.vae.latent, int(r["hidden"]), int(r["layers"])).to(self.body.device, self.body.dtype)
-        self.regressor.load_state_dict(state["regressor"])
+        self.regressor = None
+        if state["regressor"] is not None:
+            self.regressor = self._new_regressor(self._n_in).eval()
+            self.regressor.load_state_dict(state["regressor"])
         self.evaluations, self.projection_stats = list(state["evaluations"]), dict(state["projection_stats"])

@@ -71,11 +71,12 @@ class PoseDescriptor(torch.nn.Module):
 
 class Regressor(torch.nn.Module):
     """GRU regressor R(beta, gamma): per-frame inputs (B, T, n_in) (motion descriptor and body shape,
-    normalised by the training statistics) -> latent codes (B, T, latent)."""
+    normalised by the training statistics) -> latent codes (B, T, latent); ``dropout`` on the outputs of every
+    GRU layer but the last (in training mode only)."""
 
-    def __init__(self, n_in: int, latent: int, hidden: int = 256, layers: int = 2):
+    def __init__(self, n_in: int, latent: int, hidden: int = 256, layers: int = 2, dropout: float = 0.0):
         super().__init__()
-        self.gru = torch.nn.GRU(n_in, hidden, num_layers=layers, batch_first=True)
+        self.gru = torch.nn.GRU(n_in, hidden, num_layers=layers, batch_first=True, dropout=float(dropout) if layers > 1 else 0.0)
         self.out = torch.nn.Linear(hidden, latent)
         self.register_buffer("input_mean", torch.zeros(n_in))
         self.register_buffer("input_std", torch.ones(n_in))

@@ -222,7 +222,7 @@ def _tiny_scene(body):
     return garment, data, diffused, seqs
 
 
-TINY = {"projection": {"steps": 3}, "vae": {"hidden": [16], "latent": 4, "steps": 12, "samples": 2},
+TINY = {"val_sequences": 1, "projection": {"steps": 3}, "vae": {"hidden": [16], "latent": 4, "steps": 12, "samples": 2},
         "regressor": {"hidden": 8, "layers": 1, "window": 4, "pose_steps": 5,
                       "schedule": {"epochs": 2, "batch_size": 4, "lr_switch_epoch": None}}}  # fmt: skip
 
@@ -270,6 +270,57 @@ def test_a_tiny_fit_drapes_and_its_state_round_trips(body, tmp_path):
         m.vae.scale.fill_(1e-6)
     hit = m.diagnostics(garment, test, m.drape(garment, test))
     assert hit["eps_c_canonical"] == 100 and hit["sampled_prior_pct"] == 100 and hit["sampled_codes_pct"] == 100
+
+
+def test_the_mean_code_control_decodes_the_training_codes_mean_at_every_frame(body):
+    garment, data, diffused, seqs = _tiny_scene(body)
+    m = _tiny_model(body, diffused, SphereSDF(c=(5.0, 5.0, 5.0), r=0.1), {**TINY, "regressor": {**TINY["regressor"], "predict": "mean_code"}})
+    report = m.fit(data, {"seed": 0})
+    assert m.regressor is None and {h["stage"] for h in report.history} == {"vae"}
+    test = make_sequence("kick", 6, seed=9, transition=2)
+    out = m.drape(garment, test)
+    with torch.no_grad():
+        X = m.vae.decode(m.vae.code_mean[None])[0]
+    torch.testing.assert_close(out.extras["canonical"], X.expand(test.n_frames, -1, -1))
+    again = _tiny_model(body, diffused, m.sdf, m.cfg)
+    again.bind(body, data.material)
+    again.load_state_dict(m.state_dict())
+    assert torch.equal(again.drape(garment, test).vertices, out.vertices)
+
+
+def test_validation_sequences_are_spread_over_the_motion_kinds():
+    from types import SimpleNamespace
+
+    from methods.vae import VAEModel
+
+    seqs = [SimpleNamespace(motion=k) for k in ["random"] * 3 + ["walk"] * 3 + ["dance"] * 3]
+    m = VAEModel({"val_sequences": 4})
+    train, val = m.validation_split(seqs)
+    assert val == [1, 2, 5, 8] and sorted(train + val) == list(range(9))  # the last of each kind, then random's second last
+    for bad in (0, 9):
+        with pytest.raises(ValueError, match="val_sequences must be in"):
+            VAEModel({"val_sequences": bad}).validation_split(seqs)
+
+
+def test_dropout_acts_in_training_only_and_weight_decay_shrinks_the_regressor(body):
+    from methods.vae.network import Regressor
+
+    r = Regressor(5, 3, hidden=16, layers=2, dropout=0.5)
+    x = torch.randn(2, 7, 5, generator=torch.Generator().manual_seed(0))
+    r.eval()
+    assert torch.equal(r(x)[0], r(x)[0])
+    r.train()
+    assert not torch.equal(r(x)[0], r(x)[0])
+    garment, data, diffused, seqs = _tiny_scene(body)
+    norms = {}
+    for decay in (0.0, 10.0):
+        schedule = {**TINY["regressor"]["schedule"], "epochs": 10, "lr": 5e-2}
+        m = _tiny_model(body, diffused, SphereSDF(c=(5.0, 5.0, 5.0), r=0.1),
+                        {**TINY, "regressor": {**TINY["regressor"], "weight_decay": decay, "schedule": schedule}})  # fmt: skip
+        m.fit(data, {"seed": 0})
+        with torch.no_grad():
+            norms[decay] = float(sum(p.square().sum() for n, p in m.regressor.named_parameters() if "weight" in n))
+    assert norms[10.0] < 0.9 * norms[0.0]
 
 
 def test_the_regressor_keeps_the_epoch_of_lowest_validation_error(body):
