@@ -534,7 +534,10 @@ def evaluation_plot(dirs, path: Path, columns=tuple(EVALUATION_LABELS), title: s
     """Per-epoch evaluations of trained runs (``evaluations.csv`` beside each run's ``metrics.json``) against
     the epoch: one colour per method, one line style per column of ``columns`` (percentages). Runs of one
     method sharing a training seed (a checkpoint) count once; several seeds draw their mean and a band from
-    their minimum to their maximum. Written to ``path`` (PNG); returns it."""
+    their minimum to their maximum. Written to ``path`` (PNG), the curves' numbers beside it (``path`` with
+    ``.csv``: method, epoch, quantity, mean / min / max over the seeds in %, seeds); returns the PNG's path."""
+    from drapebench.table_file import write_csv
+
     import matplotlib
 
     matplotlib.use("Agg")
@@ -550,11 +553,14 @@ def evaluation_plot(dirs, path: Path, columns=tuple(EVALUATION_LABELS), title: s
         raise FileNotFoundError(f"no evaluations.csv in the runs below {', '.join(map(str, dirs))} (only methods that evaluate per epoch write one)")
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     styles = ["-", "--", ":", "-."]
+    rows = []
     for i, (method, runs) in enumerate(curves.items()):
         ev = pd.concat(list(runs.values()))
         for j, col in enumerate(c for c in columns if c in ev):
             per_epoch = ev.groupby("epoch")[col]
             x = np.asarray(per_epoch.mean().index) + 1
+            rows += [{"method": method, "epoch": int(e), "quantity": col, "mean_pct": per_epoch.mean()[e - 1], "min_pct": per_epoch.min()[e - 1],
+                      "max_pct": per_epoch.max()[e - 1], "seeds": len(runs)} for e in x]  # fmt: skip
             label = f"{method}: {EVALUATION_LABELS.get(col, col)}" + (f" ({len(runs)} seeds)" if len(runs) > 1 else "")
             ax.plot(x, per_epoch.mean(), styles[j % len(styles)], color=f"C{i}", label=label)
             if len(runs) > 1:
@@ -564,6 +570,13 @@ def evaluation_plot(dirs, path: Path, columns=tuple(EVALUATION_LABELS), title: s
     ax.set_title(title or "collisions in the canonical space per training epoch", fontsize=10)
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3)
+    scenes = ", ".join(sorted({f"{r['garment']} {r.get('body', '')}".strip() for _, r in df.iterrows()})) if "garment" in df else "unknown"
+    command = f"python -m drapebench.report {' '.join(map(str, dirs))} --evaluations"
+    write_csv(Path(path).with_suffix(".csv"), [provenance(df, command), f"Per-epoch evaluations (evaluations.csv) of the runs; "
+                                               f"garment(s) {scenes}.", "Legend: % of garment vertices inside "
+                                               "the canonical body (lower), mean / min / max over the training seeds; quantity: "
+                                               + "; ".join(f"{k}: {v}" for k, v in EVALUATION_LABELS.items()) + "."],
+              pd.DataFrame(rows), index=False, float_format="%.4f")  # fmt: skip
     return save_figure(fig, path)
 
 

@@ -178,7 +178,7 @@ def test_committed_tables_name_the_command_and_commit_that_made_them():
     import re
 
     reports = Path(__file__).resolve().parent.parent / "reports"
-    prov = re.compile(r"Produced by `python (?:-m drapebench\.report|benchmarks/bench_\w+\.py) [^`]+` from runs at commit\(s\) [0-9a-f]{7,40}")
+    prov = re.compile(r"Produced by `python (?:-m drapebench\.report|-m methods\.\w+\.\w+|benchmarks/bench_\w+\.py) [^`]+` from runs at commit\(s\) [0-9a-f]{7,40}")
     names = {p.stem for p in reports.glob("*.csv")}  # a table is its .md, .tex and .csv
     tables = sorted(p for p in reports.glob("*") if p.suffix in (".md", ".tex", ".csv") and p.stem in names)
     assert tables
@@ -201,6 +201,10 @@ def test_evaluation_plot_draws_the_runs_per_epoch_evaluations(tmp_path, monkeypa
     (runs[0].parent / "evaluations.csv").write_text("epoch,step,val_colliding_pct,sampled_colliding_pct\n0,8,1.5,3.0\n1,16,0.5,1.0\n")
     path = evaluation_plot([tmp_path / "runs"], tmp_path / "fig.png")
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and path.stat().st_size > 5000
+    curves = pd.read_csv(path.with_suffix(".csv"), comment="#")
+    assert "Produced by `python -m drapebench.report" in path.with_suffix(".csv").read_text()
+    first = curves[(curves["quantity"] == "val_colliding_pct")]
+    assert first["epoch"].tolist() == [1, 2] and first["mean_pct"].tolist() == [1.5, 0.5] and set(first["seeds"]) == {1}
     main([str(tmp_path / "runs"), "--evaluations", "--out", str(tmp_path / "fig4")])
     assert (tmp_path / "fig4.png").exists()
     import json

@@ -189,8 +189,9 @@ class VAEModel(DrapingMethod):
             raise ValueError(f"vae: reference sequences of different lengths {sorted(lengths)}; use one n_frames in the data preset")
         proj = Projection(torch.stack([p.X for p in hit]).to(body.device), torch.stack([p.residual_mm for p in hit]), torch.stack([p.colliding for p in hit]))
         self.projection_stats = {"residual_mm": float(proj.residual_mm.mean()), "residual_mm_max": float(proj.residual_mm.max()),
-                                 "canonical_colliding_pct": 100 * float(proj.colliding.mean())}  # fmt: skip
-        log.info("vae: projected %d frames: residual %.2f mm (max %.2f), %.3f %% of vertices inside the canonical body",
+                                 "canonical_colliding_pct": 100 * float(proj.colliding.mean()),
+                                 "canonical_colliding_max_pct": 100 * float(proj.colliding.max())}  # fmt: skip
+        log.info("vae: projected %d frames: residual %.2f mm (max %.2f), %.3f %% of vertices inside the canonical body (max %.3f)",
                  proj.X.shape[0] * proj.X.shape[1], *self.projection_stats.values())  # fmt: skip
         return proj
 
