@@ -19,36 +19,52 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import yaml
 
 from drapebench.cache import PROJECT_ROOT, atomic_write
-from drapebench.results import METRICS, SUMMARY_COLUMNS, legend, metric_decimals, metric_label
+from drapebench.plugins import declared, known_impl
+from drapebench.results import SUMMARY_COLUMNS, legend, metric_catalogue, metric_decimals, metric_info, metric_label
 from drapebench.table_file import write_csv
 from drapebench.table_specs import SPECS, spec
 from drapebench.train.convergence import converged_seconds
 
 CASE_COLUMNS = ["method", "garment", "motion", "shape", "dtype", "n_frames"]  # a row of a per-run table
 ENERGY_PARTS = ("energy_stvk", "energy_bending", "energy_gravity")  # summed into energy_j (J per frame)
-REFERENCE_METHOD = "pbs"  # the physics reference run as a method: the speed-ups of runtime_vs_error are over it
-# the reference's distance from itself, run as methods against the vbd reference (conf/method/<name>.yaml)
-FLOOR_METHODS = {"pbs_style3d": "the other solver (Style3D)", "pbs_half_dt": "vbd at half the time step of the reference"}
+
+
+def speedup_reference() -> str | None:
+    """The row runtime tables give every method's speed-up over: the physics reference run as a method, as its
+    package declares it (``tables.SPEEDUP_REFERENCE``, :mod:`drapebench.plugins`); None when none does."""
+    found = [row for _, row in declared("tables", "SPEEDUP_REFERENCE")]
+    if len(found) > 1:
+        raise ValueError(f"several methods declare themselves the speed-up reference: {', '.join(found)}")
+    return found[0] if found else None
+
+
+def floor_methods() -> dict[str, str]:
+    """{row: what it is}: the rows that run the reference's drape by other means against the reference (their
+    vertex error is the reference's distance from itself), as the method packages declare them
+    (``tables.REFERENCE_FLOOR``)."""
+    return {row: what for _, rows in declared("tables", "REFERENCE_FLOOR") for row, what in rows.items()}
 
 
 def reference_floor(df: pd.DataFrame, group: str = "garment") -> str:
-    """The note under a vertex-error table on how far the reference is from itself: the ``FLOOR_METHODS`` rows'
-    vertex error per ``group`` value, or the command that measures it when the runs have none ("" when the
-    runs have no vertex error)."""
-    if "vertex_error_mm" not in df or not df["vertex_error_mm"].notna().any():
+    """The note under a vertex-error table on how far the reference is from itself: the :func:`floor_methods`
+    rows' vertex error per ``group`` value, or the command that measures it when the runs have none ("" when the
+    runs have no vertex error, or no method declares such rows)."""
+    floors = floor_methods()
+    if "vertex_error_mm" not in df or not df["vertex_error_mm"].notna().any() or not floors:
         return ""
-    floor = df[df["method"].isin(list(FLOOR_METHODS)) & df["vertex_error_mm"].notna()]
+    floor = df[df["method"].isin(list(floors)) & df["vertex_error_mm"].notna()]
     head = ("Reference floor: a method's vertex error means little below the reference's distance from itself, "
             "its own rows")  # fmt: skip
     if floor.empty:
         return (f"Reference floor: not measured for these scenes; run the table's sweep with "
-                f"`method={','.join(FLOOR_METHODS)}` (the reference drape computed by {' and by '.join(FLOOR_METHODS.values())}).")
+                f"`method={','.join(floors)}` (the reference drape computed by {' and by '.join(floors.values())}).")
     parts = []
     for method, rows in floor.groupby("method", sort=False):
         cells = ", ".join(f"{k} {v:.1f}" for k, v in rows.groupby(group, sort=False)["vertex_error_mm"].mean().items())
-        parts.append(f"`{method}`, {FLOOR_METHODS[method]}: {cells} mm")
+        parts.append(f"`{method}`, {floors[method]}: {cells} mm")
     return f"{head}: " + "; ".join(parts) + "."
 
 
@@ -63,7 +79,8 @@ def _run_files(d: Path, name: str) -> list[Path]:
 
 
 def collect(dirs) -> pd.DataFrame:
-    """One row per ``metrics.json`` found below ``dirs`` (a run dir or a sweep dir, jobs in job order), with its
+    """One row per ``metrics.json`` found below ``dirs`` (a run dir or a sweep dir, jobs in job order; a method its
+    ``config.yaml`` names by import path joins the registry, :func:`drapebench.plugins.known_impl`), with its
     ``run_dir`` and, for a run that trained (a ``losses.csv`` beside it), ``converged_s``
     (:func:`drapebench.train.convergence.converged_seconds`)."""
     rows = []
@@ -72,6 +89,10 @@ def collect(dirs) -> pd.DataFrame:
         for f in _run_files(d, "metrics.json"):
             rec = json.loads(f.read_text())
             rec["run_dir"] = str(f.parent)
+            conf = f.parent / "config.yaml"
+            if conf.exists():  # a method outside the registry: its package's declarations join (drapebench.plugins)
+                method = (yaml.safe_load(conf.read_text()) or {}).get("method") or {}
+                known_impl(str(method.get("name")), method.get("impl"))
             losses = f.parent / "losses.csv"
             converged = converged_seconds(losses, rec["train_s"]) if rec.get("train_s") and losses.exists() else None
             if converged is not None:
@@ -90,22 +111,26 @@ def with_energy(df: pd.DataFrame) -> pd.DataFrame:
     return df
 
 
-OPTIMUM_SUFFIX = "_optimum"  # method <m>'s loss optimum runs as method <m>_optimum (gaps: gaps_optimum)
+OPTIMUM_SUFFIX = "_optimum"  # method <m>'s loss optimum runs as method <m>_optimum
 
 
 def with_loss_gap(df: pd.DataFrame) -> pd.DataFrame:
     """``df`` with ``loss_gap_closed`` (%) where a run scores its own loss on its drape and its untrained start
-    (``gaps_loss``, ``gaps_loss@untrained``) and runs of ``<method>_optimum`` score the same scene (garment, motion,
-    shape, body): 100 (L_untrained - L) / (L_untrained - L_optimum), the share of the gap from the untrained start
-    to the loss's optimum (mean over the optimum's runs of the scene) that training closes."""
-    need = {"gaps_loss", "gaps_loss@untrained", "method"}
-    if not need <= set(df):
-        return df
+    (a metric its method declares ``own_loss``, :class:`drapebench.metric_info.MetricInfo`: ``<loss>`` and
+    ``<loss>@untrained``) and runs of ``<method>_optimum`` score the same scene (garment, motion, shape, body):
+    100 (L_untrained - L) / (L_untrained - L_optimum), the share of the gap from the untrained start to the loss's
+    optimum (mean over the optimum's runs of the scene) that training closes."""
     keys = [c for c in ("garment", "motion", "shape", "body") if c in df]
-    optima = df[df["method"].astype(str).str.endswith(OPTIMUM_SUFFIX)].groupby(["method", *keys], dropna=False)["gaps_loss"].mean()
-    opt = [optima.get((f"{r['method']}{OPTIMUM_SUFFIX}", *(r[k] for k in keys)), np.nan) for _, r in df.iterrows()]
-    start = df["gaps_loss@untrained"]
-    return df.assign(loss_gap_closed=100.0 * (start - df["gaps_loss"]) / (start - np.asarray(opt, dtype=float)))
+    gap = None
+    for loss in (n for n, info in metric_catalogue().items() if info.own_loss):
+        if not {loss, f"{loss}@untrained", "method"} <= set(df):
+            continue
+        optima = df[df["method"].astype(str).str.endswith(OPTIMUM_SUFFIX)].groupby(["method", *keys], dropna=False)[loss].mean()
+        opt = [optima.get((f"{r['method']}{OPTIMUM_SUFFIX}", *(r[k] for k in keys)), np.nan) for _, r in df.iterrows()]
+        start = df[f"{loss}@untrained"]
+        closed = 100.0 * (start - df[loss]) / (start - np.asarray(opt, dtype=float))
+        gap = closed if gap is None else gap.fillna(closed)
+    return df if gap is None else df.assign(loss_gap_closed=gap)
 
 
 def with_scene(df: pd.DataFrame) -> pd.DataFrame:
@@ -386,7 +411,7 @@ def runtime_plot(df: pd.DataFrame, path: Path, title: str = "") -> Path:
     span = df["ms_per_frame"].max() / max(df["ms_per_frame"].min(), 1e-9)
     ax.xaxis.set_minor_formatter(plain if span < 30 else matplotlib.ticker.NullFormatter())  # minor labels when few decades
     ax.set_xlabel("drape time per frame (ms, log scale; lower is better)", fontsize=9)
-    info = METRICS[error]
+    info = metric_info(error)
     ax.set_ylabel(f"{error}: {info.meaning} ({info.unit})", fontsize=9)
     ax.set_title(f"{title + ': ' if title else ''}runtime against {error} (lower left is better)", fontsize=10)
     ax.grid(alpha=0.3)
@@ -422,7 +447,7 @@ def pareto_plot(df: pd.DataFrame, path: Path, title: str = "") -> Path:
         ax.set_xscale("log")
         ax.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
         ax.set_xlabel("drape time per frame (ms, log scale)", fontsize=9)
-        ax.set_ylabel(f"{error}: {METRICS[error].meaning} ({METRICS[error].unit})", fontsize=8)
+        ax.set_ylabel(f"{error}: {metric_info(error).meaning} ({metric_info(error).unit})", fontsize=8)
         ax.set_title(garment, fontsize=10)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
@@ -430,9 +455,10 @@ def pareto_plot(df: pd.DataFrame, path: Path, title: str = "") -> Path:
     return save_figure(fig, path)
 
 
-def speedups(df: pd.DataFrame, reference: str = REFERENCE_METHOD) -> str:
-    """One markdown line per garment: each method's speed-up over ``reference`` (its mean ms/frame over the
-    method's); empty when the runs have no ``reference`` method."""
+def speedups(df: pd.DataFrame, reference: str | None = None) -> str:
+    """One markdown line per garment: each method's speed-up over ``reference`` (default :func:`speedup_reference`;
+    its mean ms/frame over the method's); empty when the runs have no ``reference`` method."""
+    reference = reference or speedup_reference()
     if reference not in set(df["method"]):
         return ""
     ms = df.groupby(["garment", "method"], sort=False)["ms_per_frame"].mean()
@@ -469,7 +495,7 @@ def metric_bars_plot(df: pd.DataFrame, metrics: list[str], path: Path, title: st
                 ax.bar(x, mean, width * 0.9, yerr=None if np.isnan(std) else std, color=f"C{j}", capsize=3,
                        label=garment if i == 0 else None)  # fmt: skip
                 ax.plot([x] * len(g), g.groupby(seed_ids(g))[m].mean(), "k.", ms=3)
-        info = METRICS[m]
+        info = metric_info(m)
         ax.set_xticks(range(len(methods)), methods, rotation=30, ha="right", fontsize=8)
         ax.set_ylabel(f"{info.label}", fontsize=9)
         ax.set_title(info.meaning, fontsize=8)
@@ -696,7 +722,7 @@ def main(argv=None) -> None:
                         "give reports/<table> to replace a committed table)")
     parser.add_argument("--loss-curves", action="store_true", help="instead: losses.png beside every losses.csv in dirs")
     parser.add_argument("--evaluations", action="store_true",
-                        help="instead: one plot of the runs' per-epoch evaluations (evaluations.csv; the VAE's collisions per epoch) at --out.png")
+                        help="instead: one plot of the runs' per-epoch evaluations (evaluations.csv, e.g. a method's collisions per epoch) at --out.png")
     parser.add_argument("--claims", action="store_true",
                         help="instead: the claims scoreboard from the committed CSVs in reports/ (or the dirs given) to reports/claims.md (or --out.md)")
     args = parser.parse_args(argv)

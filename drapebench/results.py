@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import platform
 import subprocess
-from dataclasses import dataclass
+from functools import lru_cache
 from importlib import metadata
 from pathlib import Path
 
@@ -14,42 +14,24 @@ import numpy as np
 import torch
 
 from drapebench.cache import PROJECT_ROOT, atomic_write
+from drapebench.metric_info import MetricInfo
 from drapebench.progress import progress
 
 SUMMARY_COLUMNS = ["method", "garment", "motion", "body", "reference", "shape", "seed", "n_vertices", "n_frames", "eps_e", "eps_a", "eps_c", "eps_c_std",
                    "edge_mm", "smoothness", "penetration_mm", "jitter", "vertex_error_mm", "ms_per_frame", "train_s"]  # fmt: skip
 
 
-@dataclass(frozen=True)
-class MetricInfo:
-    """What a metric column means: table label, unit, which direction is better, one-line meaning, and the
-    decimals a table prints it with."""
-
-    label: str
-    unit: str
-    better: str
-    meaning: str
-    decimals: int = 3
-
-
-# The one catalogue of metric names, units and directions (full definitions: docs/metrics.md).
+# The library's metrics: names, units and directions (full definitions: docs/metrics.md); each method declares its own
+# diagnostics beside its code (methods/<name>/metrics.py), and metric_catalogue() joins the two.
 METRICS = {
     "eps_e": MetricInfo("ε_e (%)", "%", "lower, down to the reference's", "mean edge-length change"),
     "eps_a": MetricInfo("ε_a (%)", "%", "lower, down to the reference's", "mean face-area change"),
     "eps_c": MetricInfo("ε_c (%)", "%", "lower, 0 ideal", "garment vertices inside the body"),
-    "eps_c_nn": MetricInfo("ε_c nn (%)", "%", "lower", "vertices behind their nearest body vertex (GAPS code's count)"),
+    "eps_c_nn": MetricInfo("ε_c nn (%)", "%", "lower", "vertices behind their nearest body vertex (the count of Chen et al. 2024's code)"),
     "edge_mm": MetricInfo("edge (mm)", "mm", "lower", "mean edge-length change"),
     "smoothness": MetricInfo("smooth. (m)", "m", "lower", "mean |cotangent Laplacian| of the positions", decimals=5),
     "penetration_mm": MetricInfo("pen. (mm)", "mm", "lower", "mean depth of the vertices inside the body"),
     "jitter": MetricInfo("jitter (mm)", "mm", "lower, down to the reference's", "mean |second difference| of positions over frames"),
-    "eps_c_canonical": MetricInfo("ε_c canon. (%)", "%", "lower, 0 ideal",
-                                  "decoded canonical garment vertices inside the canonical body (VAE, before posing)"),
-    "sampled_prior_pct": MetricInfo("samples N(0,I) (%)", "%", "lower, 0 ideal",
-                                    "vertices of decoded latent samples z ~ N(0, I) inside the canonical body (VAE)"),
-    "sampled_prior3_pct": MetricInfo("samples N(0,9I) (%)", "%", "lower, 0 ideal",
-                                     "vertices of decoded latent samples z ~ N(0, 9 I) inside the canonical body (VAE)"),
-    "sampled_codes_pct": MetricInfo("samples codes (%)", "%", "lower, 0 ideal",
-                                    "vertices of decoded latent samples at the training codes' spread inside the canonical body (VAE)"),
     "vertex_error_mm": MetricInfo("err. (mm)", "mm", "lower", "mean distance to the reference drape"),
     "max_strain": MetricInfo("max strain (%)", "%", "lower", "largest edge-length change of any edge in any frame"),
     "max_penetration_mm": MetricInfo("max pen. (mm)", "mm", "lower, 0 ideal", "deepest garment vertex inside the body in any frame"),
@@ -60,39 +42,62 @@ METRICS = {
     "converged_s": MetricInfo("to converge (s)", "s", "lower",
                               "training time until the loss's running mean stays within 5 % of its total drop above its final value"),
     "energy_j": MetricInfo("energy (J)", "J", "lower, toward the reference's", "StVK + bending + gravity energy per frame"),
-    "pen_mm": MetricInfo("PEN (mm)", "mm", "neither: how much GenSim's PEN moves its ARAP stage", "mean |PEN displacement| over vertices and frames"),
-    "pen_p99_mm": MetricInfo("PEN p99 (mm)", "mm", "neither", "99th percentile of |PEN displacement| over vertices and frames"),
-    "hem_drop_mm": MetricInfo("hem drop (mm)", "mm", "neither: 0 holds, > 0 the skirt falls or stretches", "mean lowering of the hem (lowest boundary loop) by GenSim's PEN"),
-    "pin_drop_mm": MetricInfo("pin drop (mm)", "mm", "neither: 0 holds, > 0 the garment falls", "mean lowering of the pinned vertices (waistband) by GenSim's PEN"),
-    "gaps_loss": MetricInfo("GAPS loss (J)", "J", "lower, down to its optimum's",
-                            "GAPS's own training loss per frame (its weighted terms, k_ext at its cap)"),
     "loss_gap_closed": MetricInfo("gap closed (%)", "%", "higher, 100 at the loss's optimum",
                                   "share of the loss gap from the untrained skinning to the loss's optimum that training closes", decimals=1),
     "setup_s": MetricInfo("setup (s)", "s", "lower", "one-off per-garment set-up inside the drape (not in ms/frame)"),
 }
 
 
+def metric_catalogue() -> dict[str, MetricInfo]:
+    """Every metric a run can record: :data:`METRICS` and the diagnostics each method declares
+    (:mod:`drapebench.plugins`); ValueError naming the package when a method redeclares a metric's name."""
+    from drapebench.plugins import method_packages
+
+    return _catalogue(tuple(method_packages()))
+
+
+@lru_cache(maxsize=None)
+def _catalogue(packages: tuple) -> dict[str, MetricInfo]:
+    from drapebench.plugins import declared
+
+    out = dict(METRICS)
+    for package, metrics in declared("metrics", "METRICS"):
+        for name, info in metrics.items():
+            if name in out:
+                raise ValueError(f"{package}.metrics declares {name!r}, which is already a metric: name it otherwise")
+            out[name] = info
+    return out
+
+
+def metric_info(name: str) -> MetricInfo | None:
+    """The :class:`MetricInfo` of metric column ``name`` (or of its ``<metric>@<variant>``); None when no one
+    declares it."""
+    return metric_catalogue().get(name.partition("@")[0])
+
+
 def metric_decimals(name: str) -> int:
-    """Decimals a table prints the metric column ``name`` (or its ``<metric>@<variant>``) with: 3 unless
-    :data:`METRICS` says otherwise."""
-    base = name.partition("@")[0]
-    return METRICS[base].decimals if base in METRICS else 3
+    """Decimals a table prints the metric column ``name`` (or its ``<metric>@<variant>``) with: 3 unless its
+    :func:`metric_info` says otherwise."""
+    info = metric_info(name)
+    return info.decimals if info else 3
 
 
 def metric_label(name: str) -> str:
-    """Table label of a metric column (the name itself when it is not in :data:`METRICS`); a variant's
+    """Table label of a metric column (the name itself when no one declares it); a variant's
     ``<metric>@<variant>`` (a drape the method scores beside its own, :meth:`methods.base.DrapingMethod.scored_variants`)
     is the metric's label with the variant in brackets."""
     base, _, variant = name.partition("@")
-    label = METRICS[base].label if base in METRICS else base
+    info = metric_info(base)
+    label = info.label if info else base
     return f"{label} [{variant}]" if variant else label
 
 
 def legend(names) -> str:
     """One line explaining the metrics among ``names`` (meaning, unit, better) and where they are defined
     ("" when none of them is a metric)."""
+    catalogue = metric_catalogue()
     bases = dict.fromkeys(n.partition("@")[0] for n in names)
-    parts = [f"{n}: {METRICS[n].meaning} ({METRICS[n].unit}, {METRICS[n].better})" for n in bases if n in METRICS]
+    parts = [f"{n}: {catalogue[n].meaning} ({catalogue[n].unit}, {catalogue[n].better})" for n in bases if n in catalogue]
     if parts and any("@" in n for n in names):
         parts.append("[v]: the same metric of the method's variant v of its drape (e.g. after a post-processing; the method's README)")
     return "Legend: " + "; ".join(parts) + ". Definitions: docs/metrics.md." if parts else ""

@@ -1,7 +1,8 @@
 """Which rows of a committed table are stale: run at another commit than the table's newest, or by method code
 that has changed since.
 
-A method's code is its implementation folder ``methods/<impl>/`` (its ``.py`` files) and its configs
+A method's code is its implementation folder ``methods/<impl>/`` (its ``.py`` files but the declarations of what
+it reports, :func:`makes_numbers`) and its configs
 (``conf/method/<name>.yaml`` of every config whose implementation it is, and ``conf/method/<impl>_*/``), compared
 by :func:`fingerprint`: Python without comments and docstrings (its syntax tree), YAML as the data it loads, so a
 reflowed docstring changes nothing and a changed default does. Reads git history; a commit the repository does not
@@ -20,6 +21,7 @@ from pathlib import Path
 import yaml
 
 from drapebench.cache import PROJECT_ROOT
+from drapebench.plugins import DECLARATIONS
 
 METHOD_CONF = "conf/method"
 
@@ -105,16 +107,25 @@ def _normalised(path: str, text: str) -> str:
     return json.dumps(yaml.safe_load(text), sort_keys=True, default=str)
 
 
+def makes_numbers(path: str) -> bool:
+    """Whether the file ``path`` of a method's folder is code that makes its numbers: not a declaration of what it
+    reports (its top-level ``metrics.py``, ``claims.py``, ``tables.py``: labels, claims and table specs,
+    :mod:`drapebench.plugins`)."""
+    parts = Path(path).parts
+    return not (len(parts) == 3 and parts[0] == "methods" and Path(parts[2]).stem in DECLARATIONS)
+
+
 @lru_cache(maxsize=None)
 def fingerprint(impl: str, commit: str | None = None) -> str:
     """A short hash of ``impl``'s code (see the module docstring) at ``commit`` (full hash), or in the working tree
     for None."""
     if commit is None:
-        paths = [str(p.relative_to(PROJECT_ROOT)) for p in sorted((PROJECT_ROOT / "methods" / impl).rglob("*.py"))]
+        listed = [str(p.relative_to(PROJECT_ROOT)) for p in sorted((PROJECT_ROOT / "methods" / impl).rglob("*.py"))]
+        paths = [p for p in listed if makes_numbers(p)]
         read = lambda p: (PROJECT_ROOT / p).read_text() if (PROJECT_ROOT / p).exists() else None  # noqa: E731
     else:
         listed = _git("ls-tree", "-r", "--name-only", commit, "--", f"methods/{impl}/").stdout.split()
-        paths = sorted(p for p in listed if p.endswith(".py"))
+        paths = sorted(p for p in listed if p.endswith(".py") and makes_numbers(p))
         read = lambda p: (lambda r: r.stdout if r.returncode == 0 else None)(_git("show", f"{commit}:{p}"))  # noqa: E731
     h = hashlib.sha256()
     for p in [*paths, *code_files(impl)]:

@@ -34,6 +34,13 @@ def available() -> list[str]:
     return sorted(_REGISTRY)
 
 
+def target(name: str) -> str:
+    """The import path ("package.module:Class") registered as ``name``; KeyError listing the registered names."""
+    if name not in _REGISTRY:
+        raise KeyError(f"unknown method {name!r}; available methods: {', '.join(available())}")
+    return _REGISTRY[name]
+
+
 def get(name: str) -> type[DrapingMethod]:
     """The method class registered as ``name``, or the class an import path "package.module:Class" names (a
     :class:`DrapingMethod` subclass). Raises KeyError listing the registered names for an unknown name, and
@@ -52,4 +59,4 @@ def get(name: str) -> type[DrapingMethod]:
     return cls
 
 
-__all__ = ["DrapeResult", "DrapingMethod", "FitReport", "available", "get", "register"]
+__all__ = ["DrapeResult", "DrapingMethod", "FitReport", "available", "get", "register", "target"]

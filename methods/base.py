@@ -80,9 +80,10 @@ class DrapingMethod(ABC):
         return {}
 
     def diagnostics(self, garment, seq, result: DrapeResult) -> dict[str, float]:
-        """Method-specific measurements of a drape ``result`` of ``garment`` on ``seq`` ({name: float}, units in
-        :data:`drapebench.results.METRICS`), computed after the timed drape and written to ``metrics.json``;
-        none by default."""
+        """Method-specific measurements of a drape ``result`` of ``garment`` on ``seq`` ({name: float}), computed
+        after the timed drape and written to ``metrics.json``; none by default. Each name's label, unit and better
+        direction are declared in the method package's ``metrics.py`` (``METRICS``, :mod:`drapebench.plugins`),
+        which the tables read."""
         return {}
 
     def settings_key(self) -> Any:

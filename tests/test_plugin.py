@@ -1,5 +1,6 @@
-"""A method is one folder and one config file: a toy method written into a temporary folder (its package and its
-``conf/method/<name>.yaml``, nothing in this repository changed) runs through run.py and into a report table."""
+"""A method is one folder and one config file: a toy method written into a temporary folder (its package, with the
+declaration of its diagnostic, and its ``conf/method/<name>.yaml``, nothing in this repository changed) runs
+through run.py and into a report table, which reads its diagnostic's declaration."""
 
 import json
 import os
@@ -40,10 +41,25 @@ class Lifted(DrapingMethod):
         return {"toy_lift_mm": 1e3 * self.lift}
 '''
 
+TOY_METRICS = '''
+"""What the toy's diagnostic means."""
+from drapebench.metric_info import MetricInfo
+
+METRICS = {"toy_lift_mm": MetricInfo("lift (mm)", "mm", "neither", "how far the toy lifts the template")}
+'''
+
+READ_BACK = """
+from drapebench.report import collect
+from drapebench.results import legend, metric_label
+collect([{out!r}])
+print(metric_label("toy_lift_mm"), "|", legend(["toy_lift_mm"]))
+"""
+
 
 def test_a_method_from_a_folder_of_its_own_runs_through_run_py_and_the_report(tmp_path):
     (tmp_path / "toymethod").mkdir()
     (tmp_path / "toymethod" / "__init__.py").write_text(textwrap.dedent(TOY))
+    (tmp_path / "toymethod" / "metrics.py").write_text(textwrap.dedent(TOY_METRICS))
     (tmp_path / "conf" / "method").mkdir(parents=True)
     (tmp_path / "conf" / "method" / "toy.yaml").write_text("name: toy\nimpl: toymethod:Lifted\nparams: {lift: 0.01}\n")
     env = dict(os.environ, DRAPEBENCH_PROGRESS="0", HYDRA_FULL_ERROR="1", CI="1",
@@ -61,6 +77,9 @@ def test_a_method_from_a_folder_of_its_own_runs_through_run_py_and_the_report(tm
     assert p.returncode == 0, p.stderr[-3000:]
     rows = [line for line in (tmp_path / "table.md").read_text().splitlines() if line.startswith("| toy")]
     assert len(rows) == 1, (tmp_path / "table.md").read_text()
+    p = subprocess.run([sys.executable, "-c", READ_BACK.format(out=str(out))], cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr[-3000:]
+    assert p.stdout.strip() == "lift (mm) | Legend: toy_lift_mm: how far the toy lifts the template (mm, neither). Definitions: docs/metrics.md."
 
 
 def test_an_import_path_that_is_not_a_method_is_refused_naming_it():

@@ -86,3 +86,33 @@ def test_prediction_h5_keeps_a_float64_drape_float64(tmp_path):
     assert v.dtype == np.float64 and np.array_equal(v, far.numpy())  # float32 would round it to 2 mm
     write_prediction(tmp_path / "p32.h5", far.float(), torch.tensor([[0, 1, 2]]))
     assert read_prediction(tmp_path / "p32.h5")[0].dtype == np.float32
+
+
+def test_a_method_s_diagnostics_are_described_by_its_own_declaration_not_the_library_s():
+    from drapebench.results import METRICS, legend, metric_catalogue, metric_label
+
+    catalogue = metric_catalogue()
+    declared = set(catalogue) - set(METRICS)
+    assert declared and not declared & set(METRICS)  # the methods' diagnostics live beside their code only
+    name = sorted(declared)[0]
+    assert metric_label(name) == catalogue[name].label and catalogue[name].meaning in legend([name])
+    assert sum(info.own_loss for info in catalogue.values()) >= 1  # the report's loss_gap_closed reads it
+
+
+def test_a_method_redeclaring_a_library_metric_is_refused_naming_it(monkeypatch):
+    from drapebench import plugins, results
+
+    monkeypatch.setattr(plugins, "declared", lambda module, attr: [("somepkg", {"eps_c": results.METRICS["eps_c"]})])
+    results._catalogue.cache_clear()
+    try:
+        with pytest.raises(ValueError, match="somepkg.metrics declares 'eps_c'"):
+            results._catalogue(("somepkg",))
+    finally:
+        results._catalogue.cache_clear()
+
+
+def test_a_method_s_declarations_are_not_part_of_its_code_fingerprint():
+    from drapebench.staleness import makes_numbers
+
+    assert makes_numbers("methods/gaps/method.py") and makes_numbers("methods/gaps/sub/metrics.py")
+    assert not any(makes_numbers(f"methods/gaps/{m}.py") for m in ("metrics", "claims", "tables"))

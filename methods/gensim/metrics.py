@@ -1,0 +1,11 @@
+"""The diagnostics GenSim reports beside the library's metrics (:meth:`methods.gensim.GenSim.diagnostics`): how far
+its PEN moves the ARAP stage."""
+
+from drapebench.metric_info import MetricInfo
+
+METRICS = {
+    "pen_mm": MetricInfo("PEN (mm)", "mm", "neither: how much GenSim's PEN moves its ARAP stage", "mean |PEN displacement| over vertices and frames"),
+    "pen_p99_mm": MetricInfo("PEN p99 (mm)", "mm", "neither", "99th percentile of |PEN displacement| over vertices and frames"),
+    "hem_drop_mm": MetricInfo("hem drop (mm)", "mm", "neither: 0 holds, > 0 the skirt falls or stretches", "mean lowering of the hem (lowest boundary loop) by GenSim's PEN"),
+    "pin_drop_mm": MetricInfo("pin drop (mm)", "mm", "neither: 0 holds, > 0 the garment falls", "mean lowering of the pinned vertices (waistband) by GenSim's PEN"),
+}  # fmt: skip
