@@ -1,9 +1,12 @@
-"""One headline claim of a paper: the record the catalogue (``drapebench.claims_catalogue``) fills and the
-scoreboard (``drapebench.claims``) tests."""
+"""One headline claim of a paper: the record each method's ``claims.py`` fills (``drapebench.claims_catalogue``) and
+the scoreboard (``drapebench.claims``) tests."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+
+RUNTIME = ("a drape time measures the method's own operations; its untrained network or a skinning is not an "
+           "alternative explanation of it")  # the control_why of a claim on drape time
 
 
 @dataclass(frozen=True)

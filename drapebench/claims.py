@@ -21,7 +21,7 @@ from drapebench.cache import PROJECT_ROOT, atomic_write
 from drapebench.claim import Claim
 from drapebench.staleness import current_code, stale_rows
 from drapebench.table_file import read_csv
-from drapebench.table_specs import SPECS
+from drapebench.table_specs import specs
 
 CELL = re.compile(r"^\s*(-?[\d.]+(?:e[-+]?\d+)?)(?:\s*±\s*([\d.]+(?:e[-+]?\d+)?))?(?:\s*\(n=(\d+)\))?\s*$")
 NO_SEEDS = 10**6  # the seed count of a paper's bound: exact, no spread
@@ -388,6 +388,7 @@ def render(claims: list[Claim], reports: Path, code: dict | None = None) -> str:
     ]
     notes = []
     fl = {k: f for k, (f, _, _) in floors.items()}
+    table_specs = specs()
     for c, j in zip(claims, judged):
         gpu = tables.get(f"{c.table}_gpu")
         gpu_cell = "–"
@@ -398,7 +399,7 @@ def render(claims: list[Claim], reports: Path, code: dict | None = None) -> str:
         link = f"[{c.table}]({c.table}.md)" if src else (f"{c.table} (not committed)" if c.table else "–")
         if src and len(src.commits) > 1:
             link += f", rows from {len(src.commits)} commits"
-        cmd = f"<br>`{SPECS[c.table].command()}`" if c.table in SPECS else ""
+        cmd = f"<br>`{table_specs[c.table].command()}`" if c.table in table_specs else ""
         lines.append(f"| **{c.id}** ({c.source}): {c.claim} | {c.paper} | {j.ours} | {j.control} | {j.verdict} | {gpu_cell} | {link}{cmd} |")
         notes += [f"- {c.id}: {n}" for n in c.notes]
         notes += [f"- {c.id}: stale row {row}: {why}." for row, why in j.stale.items()]
@@ -453,13 +454,13 @@ def with_status(readme: str, claims_md: str, path: Path) -> str:
 
 
 def write_claims(reports: Path, out: Path | None = None, readme: Path | None = None) -> Path:
-    """Write the scoreboard of :data:`drapebench.claims_catalogue.CLAIMS` over ``reports`` to ``out`` (default
+    """Write the scoreboard of every method's claims (:func:`drapebench.claims_catalogue.claims`) over ``reports`` to ``out`` (default
     ``reports/claims.md``) and its verdict counts into ``readme``'s status block (default: the project's README.md
     when ``out`` is the committed claims.md), atomically; returns ``out``."""
-    from drapebench.claims_catalogue import CLAIMS
+    from drapebench.claims_catalogue import claims
 
     out = out or reports / "claims.md"
-    text = render(CLAIMS, reports)
+    text = render(claims(), reports)
     with atomic_write(out, "w") as f:
         f.write(text)
     readme = readme or (PROJECT_ROOT / "README.md" if Path(out).resolve() == (PROJECT_ROOT / "reports" / "claims.md").resolve() else None)

@@ -25,7 +25,7 @@ from drapebench.cache import PROJECT_ROOT, atomic_write
 from drapebench.plugins import declared, known_impl
 from drapebench.results import SUMMARY_COLUMNS, legend, metric_catalogue, metric_decimals, metric_info, metric_label
 from drapebench.table_file import write_csv
-from drapebench.table_specs import SPECS, spec
+from drapebench.table_specs import spec, specs
 from drapebench.train.convergence import converged_seconds
 
 CASE_COLUMNS = ["method", "garment", "motion", "shape", "dtype", "n_frames"]  # a row of a per-run table
@@ -712,8 +712,8 @@ def write_summary(sweep_dir: Path) -> Path:
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description="Paper-style tables from run or sweep directories.")
     parser.add_argument("dirs", nargs="*", type=Path, help="run or sweep directories (searched for metrics.json)")
-    parser.add_argument("--table", default="baseline", choices=sorted(n for n, t in SPECS.items() if t.metrics),
-                        help="which table's spec (drapebench/table_specs.py): its metrics, column groups, notes and plots")
+    parser.add_argument("--table", default="baseline", choices=sorted(n for n, t in specs().items() if t.metrics),
+                        help="which table's spec (drapebench/table_specs.py, methods/<name>/tables.py): its metrics, column groups, notes and plots")
     parser.add_argument("--methods", type=lambda s: [m for m in s.split(",") if m],
                         help="comma-separated methods to show, in this order (default: every method of the runs)")
     parser.add_argument("--garments", type=lambda s: [g for g in s.split(",") if g],

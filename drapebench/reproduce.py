@@ -1,7 +1,7 @@
 """Regenerate the committed tables with one command: ``python -m drapebench.reproduce [--tables a,b] [--quick]``
 (``make reports``).
 
-For each table (:mod:`drapebench.table_specs`, in registry order) it expands the table's sweeps into runs (the
+For each table (:func:`drapebench.table_specs.specs`, in their order) it expands the table's sweeps into runs (the
 experiment's ``hydra.sweeper.params`` and the sweep's overrides, as Hydra's basic sweeper would), runs each one
 that has not finished (a run folder ``<root>/<table>/<sweep>/<job>_<hash of its overrides>`` holding
 ``metrics.json`` or ``failed.json`` and a ``reproduce.json`` with the same overrides and commit is finished: a
@@ -30,7 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from drapebench.cache import PROJECT_ROOT, atomic_write
-from drapebench.table_specs import SPECS, Sweep, TableSpec, spec, sweeps
+from drapebench.table_specs import Sweep, TableSpec, spec, specs, sweeps
 
 QUICK = ("body=anny_lowres", "motion.n_frames=6", "motion.transition=2", "train.epochs=0", "seed=0")
 QUICK_KEEP = ("method",)  # the key whose every value --quick keeps: the table's rows
@@ -177,21 +177,22 @@ def write_tables(names: list, root: Path, out: Path, quick: bool = False, say=pr
 
 
 def main(argv=None) -> int:
+    tables = specs()
     parser = argparse.ArgumentParser(description="Run every committed table's experiments and write the tables and claims.md.")
-    parser.add_argument("--tables", type=lambda t: [x for x in t.split(",") if x], default=list(SPECS),
-                        help=f"comma-separated tables (default: all): {', '.join(SPECS)}")
+    parser.add_argument("--tables", type=lambda t: [x for x in t.split(",") if x], default=list(tables),
+                        help=f"comma-separated tables (default: all): {', '.join(tables)}")
     parser.add_argument("--quick", action="store_true", help="every table's pipeline on a tiny scene, untrained, into outputs/reproduce_quick")
     parser.add_argument("--out", type=Path, help="where the tables go (default: reports/, or outputs/reproduce_quick/reports with --quick)")
     parser.add_argument("--runs", type=Path, help="where the runs go (default: outputs/reproduce, or outputs/reproduce_quick/runs)")
     parser.add_argument("--dry-run", action="store_true", help="list the runs and whether each has finished, run nothing")
     args = parser.parse_args(argv)
-    unknown = [t for t in args.tables if t not in SPECS]
+    unknown = [t for t in args.tables if t not in tables]
     if unknown:
-        parser.error(f"--tables: no table {', '.join(unknown)}; tables: {', '.join(SPECS)}")
+        parser.error(f"--tables: no table {', '.join(unknown)}; tables: {', '.join(tables)}")
     base = PROJECT_ROOT / "outputs" / ("reproduce_quick" if args.quick else "reproduce")
     root = args.runs or (base / "runs" if args.quick else base)
     out = args.out or (base / "reports" if args.quick else PROJECT_ROOT / "reports")
-    names = [n for n in SPECS if n in args.tables or _needed_by(n, args.tables)]
+    names = [n for n in tables if n in args.tables or _needed_by(n, args.tables)]
     jobs = plan(names, root, args.quick)
     at = commit()
     if args.dry_run:
@@ -212,7 +213,8 @@ def main(argv=None) -> int:
 
 def _needed_by(name: str, tables: list) -> bool:
     """Whether a table of ``tables`` reads ``name``'s runs."""
-    return any(SPECS[t].sweeps_of == name for t in tables if t in SPECS)
+    found = specs()
+    return any(found[t].sweeps_of == name for t in tables if t in found)
 
 
 if __name__ == "__main__":

@@ -9,12 +9,13 @@ import pytest
 
 from drapebench.claims import (KINDS, Claim, evaluate, parse_cell, read_table, recorded_code, render, resolution_floors,
                                status_block, verdict_class, with_status)  # fmt: skip
-from drapebench.claims_catalogue import CLAIMS
+from drapebench.claims_catalogue import claims
 from drapebench.staleness import current_code
 from drapebench.table_file import TableError, read_csv, seal, verified_text
 
 ROOT = Path(__file__).resolve().parent.parent
 REPORTS = ROOT / "reports"
+CLAIMS = claims()  # every method's, as the scoreboard lists them
 
 
 def _git(*args) -> str:
@@ -250,3 +251,17 @@ def test_wrong_widths_and_cells_that_are_no_number_are_errors(tmp_path, row, mat
     path.write_text(seal(path.read_text().rsplit("# sha256 ", 1)[0] + row + "\n"))
     with pytest.raises(TableError, match=match):
         read_table(path)
+
+
+def test_the_claims_and_tables_are_each_method_s_own_and_one_id_is_one_claim(monkeypatch):
+    from drapebench import claims_catalogue, plugins, table_specs
+
+    owners = {package for package, _ in [*plugins.declared("claims", "CLAIMS"), *plugins.declared("tables", "TABLES")]}
+    assert len(owners) >= 3 and all(p.startswith("methods.") for p in owners)  # the papers' claims live beside their methods
+    again = CLAIMS[0]
+    monkeypatch.setattr(claims_catalogue, "declared", lambda module, attr: [("a", [again]), ("b", [again])] if attr == "CLAIMS" else [])
+    with pytest.raises(ValueError, match=f"claim ids declared twice: {again.id}"):
+        claims_catalogue.claims()
+    monkeypatch.setattr(plugins, "declared", lambda module, attr: [("a", table_specs.TABLES[:1])])
+    with pytest.raises(ValueError, match=f"table '{table_specs.TABLES[0].name}' declared twice"):
+        table_specs.specs()
