@@ -331,7 +331,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     for variant, drape in method.scored_variants(seq, on_device).items():  # the same metrics, suffixed @variant
         scored = _evaluate(cfg, garment, seq, body, drape.cpu(), reference, material)[0]
         summary.update({f"{k}@{variant}": v for k, v in scored.items() if k in METRICS})
-    summary.update(method.diagnostics(garment, seq, on_device))  # method-specific measurements, e.g. the VAE's canonical collisions
+    summary.update(method.diagnostics(garment, seq, on_device))  # method-specific measurements (declared in methods/<name>/metrics.py)
     stages["eval_s"] = time.perf_counter() - t
     record = {
         "method": cfg.method.name, "garment": cfg.garment.kind, "motion": cfg.motion.name, "body": cfg.body.name,

@@ -12,7 +12,7 @@ then writes the table from those runs and, at the end, ``claims.md`` over the ta
 ``--quick`` is the same pipeline on a tiny scene (the low-resolution body, 8 frames, nothing trained:
 ``train.epochs=0``, seed 0; every method of a sweep but only the first value of its other swept keys, so every
 row exists) into ``outputs/reproduce_quick/``, for a check that every table's pipeline runs, not for numbers; the
-benchmark tables (vae_table2, scaling), timed on their own scenes, are skipped.
+benchmark tables (those with ``bench``), timed on their own scenes, are skipped.
 The full command writes into ``reports/`` (``--out`` elsewhere).
 """
 

@@ -27,7 +27,7 @@ METRICS = {
     "eps_e": MetricInfo("ε_e (%)", "%", "lower, down to the reference's", "mean edge-length change"),
     "eps_a": MetricInfo("ε_a (%)", "%", "lower, down to the reference's", "mean face-area change"),
     "eps_c": MetricInfo("ε_c (%)", "%", "lower, 0 ideal", "garment vertices inside the body"),
-    "eps_c_nn": MetricInfo("ε_c nn (%)", "%", "lower", "vertices behind their nearest body vertex (the count of Chen et al. 2024's code)"),
+    "eps_c_nn": MetricInfo("ε_c nn (%)", "%", "lower", "vertices behind their nearest body vertex (the count of the code of Chen et al., 3DV 2024)"),
     "edge_mm": MetricInfo("edge (mm)", "mm", "lower", "mean edge-length change"),
     "smoothness": MetricInfo("smooth. (m)", "m", "lower", "mean |cotangent Laplacian| of the positions", decimals=5),
     "penetration_mm": MetricInfo("pen. (mm)", "mm", "lower", "mean depth of the vertices inside the body"),

@@ -8,13 +8,14 @@ from enum import Enum
 from typing import Any, Dict, List, Optional
 
 from hydra.core.config_store import ConfigStore
+from omegaconf import MISSING
 
 from drapebench.keys import check_known
 
 
 @dataclass
 class MethodConf:
-    name: str = "lbs"  # row label in tables
+    name: str = MISSING  # row label in tables (conf/config.yaml's defaults choose the method)
     impl: Optional[str] = None  # registered implementation (methods.available()); default: name
     params: Dict[str, Any] = field(default_factory=dict)
 
@@ -78,7 +79,7 @@ class MaterialConf:
 @dataclass
 class TrainConf:
     """The training budget of every learned method (drapebench.train); keys only one method reads live
-    in that method's config (e.g. conf/method/gaps_budget/)."""
+    in that method's config (e.g. conf/method/<name>_budget/)."""
 
     name: str = "default"  # preset name (conf/train/<name>.yaml)
     dataset: str = "train_small"  # drapebench.body.dataset name

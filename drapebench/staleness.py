@@ -65,14 +65,14 @@ def _conf_impl(stem: str, seen=()) -> str | None:
 
 
 def _folder(impl: str) -> str:
-    """The folder under ``methods/`` holding implementation ``impl`` (``gaps_optimum`` lives in ``methods/gaps``)."""
+    """The folder under ``methods/`` holding implementation ``impl`` (``<m>_optimum`` lives in ``methods/<m>``)."""
     return max((f for f in impls() if impl == f or impl.startswith(f + "_")), key=len, default=impl)
 
 
 @lru_cache(maxsize=None)
 def implementation(row: str) -> str | None:
     """The implementation folder (``methods/<folder>``) behind a table row: the row's method config, or the config
-    whose name is the longest prefix of it (``gaps_untrained`` is ``gaps`` run with ``method.name`` changed); None
+    whose name is the longest prefix of it (``<m>_untrained`` is ``<m>`` run with ``method.name`` changed); None
     when no method config matches."""
     stems = sorted((p.stem for p in (PROJECT_ROOT / METHOD_CONF).glob("*.yaml")), key=len, reverse=True)
     stem = next((s for s in stems if row == s or row.startswith(s + "_")), None)

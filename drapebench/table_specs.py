@@ -30,7 +30,7 @@ class TableSpec:
     variant of its drape) per column group ``group`` (a run-record key; None: one row per run); ``sweeps`` run in
     order (``sweeps_of``: the runs of another table instead); ``methods`` / ``garments``: the rows in order and the
     garments read (empty: all the runs'); ``note``: printed under the table; ``bars``: metrics also drawn as bars;
-    ``pareto``: the runtime plot per garment with each method's speed-up over pbs (else one scatter);
+    ``pareto``: the runtime plot per garment with each method's speed-up over the reference row (else one scatter);
     ``bench``: a script that writes the table itself (argv after ``python``, ``{out}`` the output path) instead of
     sweeps; ``evaluations``: instead a plot of the runs' per-epoch evaluations."""
 

@@ -1,7 +1,7 @@
 """Every run logged to an experiment tracker, MLflow, on by default (``tracker=mlflow``; ``tracker=none``: off).
 
 A run (and each run of a sweep) becomes one MLflow run, in the MLflow experiment named after the experiment config
-(``experiment=gaps_table1`` -> ``gaps_table1``; ``default`` without one), once its folder is complete:
+(``experiment=<name>`` -> ``<name>``; ``default`` without one), once its folder is complete:
 
 - parameters: the resolved config, flattened (``method.params.train.lr``; lists as JSON);
 - metrics: the numbers of ``metrics.json`` (or of ``failed.json``), a scored variant's ``eps_e@untrained`` as

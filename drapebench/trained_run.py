@@ -1,5 +1,5 @@
 """A finished run's trained method on its scene again, for diagnostics that look inside a run
-(``python -m methods.vae.diagnose``, ``python -m methods.gaps.diagnose --run``)."""
+(``python -m methods.<name>.diagnose``)."""
 
 from __future__ import annotations
 
@@ -35,6 +35,6 @@ def load_run(run_dir: str | Path, device: str | torch.device | None = None) -> T
     scene = Scene.from_config(cfg, device=device)
     method = method_class(cfg)(OmegaConf.to_container(cfg.method.params, resolve=True))
     method.bind(scene.body, scene.material)
-    if ckpt:  # a method with nothing to learn (lbs, an optimum row) has no checkpoint
+    if ckpt:  # a method with nothing to learn (a skinning, an optimum row) has no checkpoint
         method.load_state_dict(torch.load(ckpt, map_location="cpu", weights_only=False)["method"])
     return TrainedRun(**{f.name: getattr(scene, f.name) for f in fields(Scene)}, method=method)

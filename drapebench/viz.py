@@ -167,7 +167,7 @@ def record_drape(
     hidden by default). ``stages`` are a method's intermediate results (``DrapeResult.extras``): each
     (T, V, 3) one is a mesh ``stages/<name>`` (green, hidden by default) and, for those named in
     ``displaced_from`` (stages in the drape's own space), in a 3D view of its own the drape ``moved/<name>``
-    coloured by its distance from that stage (white 0 -> blue at the 99th percentile, e.g. GenSim's PEN
+    coloured by its distance from that stage (white 0 -> blue at the 99th percentile, e.g. a network's correction
     displacement as its Fig. 11 shows it); each (T, V) bool one the points
     ``stages/<name>`` at those vertices of the first mesh stage (yellow). ``metrics`` (a
     per-frame DataFrame with a ``frame`` column, the run's frames.csv) are plotted beside the 3D view

@@ -6,7 +6,8 @@ reused; a missing, incomplete, corrupt or outdated file is rebuilt. Held-out mot
 and ``stress`` never appear in training sets) give a split by motion; disjoint per-sequence seeds
 (drawn from each spec's own ``seed``) give a split within a motion. ``train_random_small`` and
 ``train_random`` hold procedural random motion (``motion=random``) with random body shapes, as many
-sequences and frames as ``train_small`` and ``train``; ``train_gaps`` 60 sequences of named and random motion.
+sequences and frames as ``train_small`` and ``train``; ``train_gaps`` 60 sequences of named and random motion (the scale of a
+self-supervised method's public code, below).
 """
 
 from __future__ import annotations
@@ -65,8 +66,8 @@ DATASETS: dict[str, DatasetSpec] = {
     "train": DatasetSpec(TRAIN_MOTIONS, per_motion=8, n_frames=150, split="train", seed=0),
     "train_random_small": DatasetSpec(("random",), per_motion=14, n_frames=90, split="train", seed=30000),
     "train_random": DatasetSpec(("random",), per_motion=56, n_frames=150, split="train", seed=30000),
-    # GAPS's self-supervised scale: no simulation, so the public code's 60 sequences; named motions (arm_raise and twist
-    # left out, methods/gaps/README.md) and random motion, 10 sequences of each
+    # a self-supervised method's scale (no simulation): the 60 sequences of Chen et al. 2024's public code; named
+    # motions (arm_raise and twist left out, that method's README) and random motion, 10 sequences of each
     "train_gaps": DatasetSpec(("walk", "run", "jump", "squat", "dance", "random"), per_motion=10, n_frames=150, split="train", seed=50000),
     "val": DatasetSpec(TRAIN_MOTIONS, per_motion=1, n_frames=120, split="val", seed=5000),
     "test": DatasetSpec(("walk", "run", "jump", "dance") + HELD_OUT_MOTIONS[:1], per_motion=1, n_frames=120, split="test", seed=10000),

@@ -24,7 +24,7 @@ def nearest_body_vertices(points: torch.Tensor, body, betas: torch.Tensor | None
 
 
 def nearest_weights(index: torch.Tensor, body) -> torch.Tensor:
-    """(N, J) skinning weights copied from the body vertices ``index`` (N,) (SNUG's and the LBS baseline's)."""
+    """(N, J) skinning weights copied from the body vertices ``index`` (N,) (SNUG's and the skinning baseline's)."""
     return body.weights[index].clone()
 
 

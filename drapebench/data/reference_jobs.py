@@ -12,7 +12,7 @@ into the shared reference cache (a cluster needs a shared filesystem, as for swe
 (the drape's cache file, or the failure and its cause) into its job folder. Run the command again after a kill, a
 time limit or a lost node: the finished sequences are skipped, and so are those whose simulation diverged
 (recorded beside the cache; ``force=true`` simulates them again). It ends with the set's summary and its failures;
-a training run with the same ``data=`` then reads the drapes from the cache (``python run.py method=vae data=paper``).
+a training run with the same ``data=`` then reads the drapes from the cache (``python run.py method=<a supervised method> data=paper``).
 """
 
 from __future__ import annotations

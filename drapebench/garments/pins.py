@@ -1,6 +1,6 @@
 """Pin vertices: the band of a garment that rests on the body (a skirt's waistband, a top's shoulders).
 
-Methods that hold a garment to the body (GenSim, paper Eq. 5-6; the reference simulators) read
+Methods that hold a garment to the body (Tiwari et al. 2023, Eq. 5-6; the reference simulators) read
 ``Garment.pins``. A garment that comes without them (a user's OBJ) gets the vertices of its top band
 (the highest ``band`` metres) that lie closest to the canonical body.
 """

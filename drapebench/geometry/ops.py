@@ -77,7 +77,7 @@ def dihedral_angles(x: torch.Tensor, hinges, hinge_opposite: torch.Tensor | None
 
     x (..., V, 3); ``hinges`` a Topology, or its ``hinge_edges`` (H, 2) (oriented as in the first face)
     followed by ``hinge_opposite`` (H, 2). n0 = e x (p0 - x0), n1 = (p1 - x0) x e are the (unnormalised)
-    normals of the two faces (GAPS/SNUG code convention); the angle is positive when the second face's
+    normals of the two faces (the SNUG code's convention); the angle is positive when the second face's
     opposite vertex p1 lies behind the first face's plane (n0 . (p1 - x0) < 0). Returns (..., H). Finite with finite gradients for degenerate hinges: when both
     atan2 arguments vanish the cosine is nudged to eps (atan2(0, 0) has no gradient).
     """

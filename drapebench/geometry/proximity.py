@@ -1,4 +1,4 @@
-"""Garment-to-body proximity: nearest body vertex with its normal (what the GAPS losses use) and
+"""Garment-to-body proximity: nearest body vertex with its normal (what the losses of Chen et al. 2024 and SNUG use) and
 culling of body parts far from the garment (``culled_body_vertices``; every query takes the result
 as ``candidates=``). The exact signed distance lives in :mod:`drapebench.geometry.sdf`.
 
@@ -138,7 +138,7 @@ def nearest_body_vertex(
     candidates: torch.Tensor | None = None,
     tree: cKDTree | None = None,
 ) -> NearestVertex:
-    """Nearest body vertex per garment point, with the signed normal distance (GAPS/SNUG collision).
+    """Nearest body vertex per garment point, with the signed normal distance (the SNUG collision term's).
 
     points (B,N,3) m; body_vertices (B,Vb,3) (or (1,Vb,3), shared by the batch); body_normals
     (B,Vb,3) unit area-weighted vertex normals; ``candidates`` (C,) body vertex indices to search

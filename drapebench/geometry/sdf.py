@@ -65,7 +65,7 @@ class SurfacePoint:
 @cache
 def _body_bvh():
     """:mod:`drapebench.geometry.body_bvh`, imported on first use: importing it loads and initialises warp
-    (about 0.3 s), which a caller that never queries a posed body (the VAE's inference, for one) skips.
+    (about 0.3 s), which a caller that never queries a posed body (an inference in the canonical space, for one) skips.
     None without warp (the ``sim`` extra): every query then takes the exact libigl path (said once in the log)."""
     try:
         from drapebench.geometry import body_bvh

@@ -46,10 +46,10 @@ class Topology:
     areas); rest_inv (F,2,2) inverse of the rest edge matrix Dm = [x1-x0, x2-x0] expressed in 2D: the
     3D rest triangle rotated into its own plane, or the UV (sewing-pattern, metres) triangle when the
     mesh was built with ``uv`` (then ``uv_rest`` is True and the template itself is pre-strained, as
-    GAPS/SNUG do for pants, shorts and dresses); vertex_areas (V,) lumped (sum of A/3);
+    SNUG and Chen et al. 2024 do for pants, shorts and dresses); vertex_areas (V,) lumped (sum of A/3);
     ring_ptr (V+1,), ring_idx (nnz,) 1-ring neighbours in CSR form; rest_ring_eigvals (V,3)
     ascending eigenvalues of the covariance of each vertex's 1-ring neighbours (centre excluded,
-    mean-centred, divided by the count; GAPS); laplacian (V,V) sparse cotangent Laplacian
+    mean-centred, divided by the count; Chen et al. 2024); laplacian (V,V) sparse cotangent Laplacian
     (positive semi-definite, L_ii = sum of cot weights); boundary_loops: list of (n,) vertex loops.
     """
 

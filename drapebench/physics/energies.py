@@ -1,9 +1,10 @@
 """Cloth energies, batched over (B, V, 3), differentiable, float32 or float64.
 
 Each function returns a (B,) total, or per-element values with ``per_element=True``. Formulas
-follow the public GAPS/SNUG code (``docs/references.md``) and the GenSim
-paper; the source of each is in its docstring. Loss *weights* are never applied here: the caller
-(method) owns them (e.g. GAPS's collision weight 250, the SNUG pitfall).
+follow the public code of SNUG (Santesteban et al. 2022) and of Chen et al. 2024 (3DV: R. Chen, L. Chen,
+S. Parashar; ``docs/references.md``) and the paper of Tiwari et al. 2023 (CVPR-W); the source of each is in its
+docstring. Loss *weights* are never applied here: the caller (method) owns them (e.g. Chen et al.'s collision
+weight 250, the SNUG pitfall).
 """
 
 from __future__ import annotations
@@ -60,7 +61,7 @@ def green_strain(x: torch.Tensor, topo: Topology) -> torch.Tensor:
 def stvk_energy(x: torch.Tensor, topo: Topology, material: Material, per_element: bool = False) -> torch.Tensor:
     """StVK membrane energy (J): sum_f A_f t (mu |G|_F^2 + lambda/2 tr(G)^2).
 
-    GAPS/SNUG code: S = mu G + lambda/2 tr(G) I, energy density tr(S^T G); A_f is the rest area,
+    as the SNUG code and that of Chen et al. 2024 compute it: S = mu G + lambda/2 tr(G) I, energy density tr(S^T G); A_f is the rest area,
     mu and lambda per thickness (Material), so the product with thickness t gives N/m.
     """
     x = _batch(x)
@@ -82,15 +83,15 @@ def bending_energy(
     """Discrete hinge bending (J): sum_e k s_e / 2 [(1 - w_e) theta_e^2 + w_e (theta_e - theta_bar_e)^2].
 
     theta is the signed dihedral angle (``ops.dihedral_angles``), s_e = l_e^2 / (4 (a0 + a1)) with the
-    hinge edge's length l_e and its two face areas a0, a1 (the GAPS paper's Eq. 12 writes l^2/(8a) with
+    hinge edge's length l_e and its two face areas a0, a1 (Chen et al. 2024's Eq. 12 writes l^2/(8a) with
     no 1/2 in front, the same number), k = Material.bending (N m).
     ``rest_angle``: "flat" (theta_bar = 0, SNUG), "template" (theta_bar = rest dihedral), or an (H,)
-    tensor (rad). ``blend`` (H,) or (B, H) in [0, 1] gives GAPS's per-edge mix between the flat and
+    tensor (rad). ``blend`` (H,) or (B, H) in [0, 1] gives Chen et al. 2024's per-edge mix between the flat and
     the template angle (Eq. 12); with ``blend`` theta_bar is the template angle and ``rest_angle`` is ignored.
     ``scale`` says where l_e and a0, a1 are measured: "rest" (both on the rest mesh; ArcSim's
-    constant stiffness), "edge" (l_e on the deformed mesh, the areas at rest: what the SNUG and GAPS
+    constant stiffness), "edge" (l_e on the deformed mesh, the areas at rest: what the SNUG and Chen et al.
     code compute, ``losses/physics.py`` / ``script/losses/losses.py``, so a stretched hinge bends
-    stiffer by its stretch squared) or "current" (both deformed, as GenSim Eq. 4 prints ||E_ij^pred||^2).
+    stiffer by its stretch squared) or "current" (both deformed, as Tiwari et al. 2023's Eq. 4 prints ||E_ij^pred||^2).
     """
     x = _batch(x)
     theta = dihedral_angles(x, topo)
@@ -120,7 +121,7 @@ def bending_energy(
 
 
 def gravity_energy(x: torch.Tensor, topo: Topology, material: Material, per_element: bool = False) -> torch.Tensor:
-    """Gravitational potential energy (J): -sum_v m_v g . x_v (GAPS Eq. 10; g = Material.gravity)."""
+    """Gravitational potential energy (J): -sum_v m_v g . x_v (Chen et al. 2024, Eq. 10; g = Material.gravity)."""
     x = _batch(x)
     g = torch.tensor(material.gravity, dtype=x.dtype, device=x.device)
     return _total(-topo.vertex_masses(material) * (x * g).sum(-1), per_element)
@@ -135,10 +136,10 @@ def inertia_energy(
     dt: float | None = None,
     per_element: bool = False,
 ) -> torch.Tensor:
-    """Inertia (J): sum_v m_v |x - x_hat|^2 / (2 dt^2), x_hat = x_prev + dt v_prev (SNUG/GAPS Eq. 13).
+    """Inertia (J): sum_v m_v |x - x_hat|^2 / (2 dt^2), x_hat = x_prev + dt v_prev (SNUG; Chen et al. 2024, Eq. 13).
 
-    Callers detach ``x_prev``/``v_prev`` when gradients must not flow into earlier frames (GAPS/NCS
-    use stop_gradient on 2 x1 - x0).
+    Callers detach ``x_prev``/``v_prev`` when gradients must not flow into earlier frames (Chen et al.'s
+    and NCS's code use stop_gradient on 2 x1 - x0).
     """
     x = _batch(x)
     dt = material.dt if dt is None else dt
@@ -151,7 +152,7 @@ def collision_energy(
     x: torch.Tensor, nn_point: torch.Tensor, nn_normal: torch.Tensor, eps: float = 2e-3, per_element: bool = False
 ) -> torch.Tensor:
     """Cubic body-collision penalty (m^3): sum_v max(eps - d_v, 0)^3, d_v = n . (x_v - p_v) to the nearest
-    body vertex p_v with normal n (SNUG/GAPS code; the weight, 250 in GAPS, is the caller's)."""
+    body vertex p_v with normal n (SNUG and Chen et al. 2024 code; the weight, 250 there, is the caller's)."""
     x = _batch(x)
     d = ((x - nn_point) * nn_normal).sum(-1)
     return _total(torch.relu(eps - d) ** 3, per_element)
@@ -160,12 +161,12 @@ def collision_energy(
 def hinge_collision_energy(
     x: torch.Tensor, nn_point: torch.Tensor, nn_normal: torch.Tensor, eps: float = 2e-3, per_element: bool = False
 ) -> torch.Tensor:
-    """GenSim's linear hinge collision penalty (m): sum_v max(eps - d_v, 0), d_v = n . (x_v - p_v).
+    """Tiwari et al. 2023's linear hinge collision penalty (m): sum_v max(eps - d_v, 0), d_v = n . (x_v - p_v).
 
-    GenSim Eq. 8 prints max(-n (B - G), eps) = max(d, eps), which read literally is minimised by
+    Their Eq. 8 prints max(-n (B - G), eps) = max(d, eps), which read literally is minimised by
     pulling every vertex onto the body; its text asks for a penetration penalty with a threshold
     eps "for robustness". This is the hinge on the margin: eps > 0 keeps vertices eps outside the
-    body (as the cubic SNUG/GAPS term); a negative eps tolerates penetrations up to |eps| (the other
+    body (as the cubic SNUG term); a negative eps tolerates penetrations up to |eps| (the other
     reading of the threshold). The weight is the caller's.
     """
     x = _batch(x)
@@ -197,11 +198,11 @@ def _det3(m: torch.Tensor) -> torch.Tensor:
 def inextensibility_energy(
     x: torch.Tensor, topo: Topology, k_ext: float | torch.Tensor = 1.0, per_element: bool = False
 ) -> torch.Tensor:
-    """GAPS collision-aware inextensibility (m^6): sum_v sum_j |det(C_v - k_ext,v sigma_j,v I)| (GAPS Eq. 15).
+    """Collision-aware inextensibility (m^6): sum_v sum_j |det(C_v - k_ext,v sigma_j,v I)| (Chen et al. 2024, Eq. 15).
 
     C_v is the current 1-ring covariance, sigma_j the template's eigenvalues
     (``Topology.rest_ring_eigvals``); ``k_ext`` is a scalar or (B, V) per-vertex factor (1 = inextensible;
-    GAPS Eq. 16 raises it where the garment collides). The weight (2e8) is the caller's.
+    their Eq. 16 raises it where the garment collides). The weight (2e8) is the caller's.
     """
     x = _batch(x)
     C = ring_covariance(x, topo)
@@ -216,11 +217,11 @@ def inextensibility_energy(
 def collision_aware_kext(
     distance: torch.Tensor, epoch: float, eps: float = 2e-3, rate: float = 10.0, cap: float = 0.03, ramp_epochs: int = 100
 ) -> torch.Tensor:
-    """GAPS Eq. 16 extension factor per vertex: k_ext = 1 + min(rate d_c, cap) min(epoch, ramp_epochs), d_c = max(eps - d, 0).
+    """Chen et al. 2024's Eq. 16 extension factor per vertex: k_ext = 1 + min(rate d_c, cap) min(epoch, ramp_epochs), d_c = max(eps - d, 0).
 
     ``distance`` (B, V) signed normal distance to the nearest body vertex (m); returns (B, V) in
-    [1, 1 + cap ramp_epochs] (GAPS: [1, 4], reached for d <= eps - cap/rate = -1 mm after 100 epochs).
-    Not differentiated (the GAPS code treats it as a constant of the loss).
+    [1, 1 + cap ramp_epochs] (theirs: [1, 4], reached for d <= eps - cap/rate = -1 mm after 100 epochs).
+    Not differentiated (their code treats it as a constant of the loss).
     """
     d_c = torch.relu(eps - distance.detach())
     return 1.0 + torch.clamp(rate * d_c, max=cap) * min(epoch, ramp_epochs)
@@ -229,7 +230,7 @@ def collision_aware_kext(
 def restrain_energy(
     x: torch.Tensor, topo: Topology, fabric_mean: float, fabric_std: float, per_element: bool = False
 ) -> torch.Tensor:
-    """GenSim restrain energy (dimensionless): sum_e ((|l_e - l0_e| - mu_fabric) / sigma_fabric)^2 (GenSim Eq. 2-3).
+    """Restrain energy (dimensionless): sum_e ((|l_e - l0_e| - mu_fabric) / sigma_fabric)^2 (Tiwari et al. 2023, Eq. 2-3).
 
     ``fabric_mean``/``fabric_std`` (m) are the mean and std of absolute edge-length changes of the
     fabric, estimated from reference simulations.
@@ -242,7 +243,7 @@ def restrain_energy(
 
 
 def pin_energy(x: torch.Tensor, target: torch.Tensor, pins: torch.Tensor, per_element: bool = False) -> torch.Tensor:
-    """Pin energy (m^2): sum_{i in pins} |x_i - target_i|^2 (GenSim Eq. 5); target (P,3) or (B,P,3)."""
+    """Pin energy (m^2): sum_{i in pins} |x_i - target_i|^2 (Tiwari et al. 2023, Eq. 5); target (P,3) or (B,P,3)."""
     x = _batch(x)
     d = x[:, pins] - target
     return _total((d * d).sum(-1), per_element)
@@ -258,7 +259,7 @@ def laplacian(x: torch.Tensor, topo: Topology) -> torch.Tensor:
 
 
 def laplacian_smoothness(x: torch.Tensor, topo: Topology, squared: bool = False, per_element: bool = False) -> torch.Tensor:
-    """Mesh smoothness: sum_v |(L x)_v| (m) with the cotangent Laplacian L (GenSim Eq. 7 prints only
+    """Mesh smoothness: sum_v |(L x)_v| (m) with the cotangent Laplacian L (Tiwari et al. 2023's Eq. 7 prints only
     "Delta(G)"; its Table 2 reports a mean magnitude), or sum_v |(L x)_v|^2 (m^2) with ``squared``.
     L's off-diagonal weights are (cot a + cot b) / 2, not area-normalised (``Topology.laplacian``)."""
     lx = laplacian(x, topo)

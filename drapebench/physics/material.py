@@ -2,10 +2,10 @@
 
 Units: thickness m; bulk_density kg/m^3 (area density = bulk_density x thickness, kg/m^2);
 young Pa; poisson dimensionless; lame_mu / lame_lambda Pa *per thickness* (the energies multiply
-by thickness, as the GAPS/SNUG code does: the SNUG paper's 11.1 / 20.9 were already x t);
+by thickness, as the SNUG code and Chen et al. 2024's do: the SNUG paper's 11.1 / 20.9 were already x t);
 bending N m; collision_thickness m; gravity m/s^2; dt s.
 
-Lame and bending follow ARCSim's formulas used by GAPS/SNUG (``material.py`` there):
+Lame and bending follow ARCSim's formulas used by SNUG and Chen et al. 2024 (``material.py`` there):
 A = E / (1 - nu^2), mu = A (1 - nu) / 2, lambda = A nu, k_bend = A t^3 / 12 x bending_multiplier.
 """
 
@@ -38,12 +38,12 @@ MAX_GRAVITY = 100.0  # m/s^2 (about 10 g)
 
 @dataclass(frozen=True)
 class Material:
-    """A cloth material (defaults: the GAPS/SNUG cotton, ``docs/references.md``).
+    """A cloth material (defaults: the cotton of SNUG and Chen et al. 2024, ``docs/references.md``).
 
     Every value must be finite and within :data:`RANGES` (gravity at most :data:`MAX_GRAVITY` long), else
     ValueError naming the field, its range and the fix.
     Fields: name; thickness t (m); bulk_density (kg/m^3); young E (Pa); poisson nu (-, in [0, 0.5));
-    bending_multiplier (-, ARCSim/GAPS factor on the plate stiffness); collision_thickness eps (m,
+    bending_multiplier (-, ARCSim's factor on the plate stiffness, as Chen et al. 2024 use it); collision_thickness eps (m,
     collision penalty margin); friction (-, Coulomb coefficient, used by the reference simulator);
     gravity (m/s^2, 3 components, Z up); dt (s, time step of the inertia term).
     Derived: area_density (kg/m^2), lame_mu / lame_lambda (Pa, per thickness), bending (N m).

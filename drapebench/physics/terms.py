@@ -36,7 +36,7 @@ def energy_terms(
     """Named (B,) energies of garment positions x (B, V, 3) in joules (collision in m^3, unweighted).
 
     Always ``stvk``, ``bending``, ``gravity``; ``inertia`` when ``x_prev`` and ``v_prev`` (B, V, 3) are
-    given (x_hat = x_prev + dt v_prev, Material.dt); ``collision`` (cubic SNUG/GAPS penalty against
+    given (x_hat = x_prev + dt v_prev, Material.dt); ``collision`` (cubic SNUG penalty against
     the nearest body vertex, margin ``collision_eps`` or Material.collision_thickness) when
     ``body_vertices`` and ``body_normals`` (B, Vb, 3) are given (``candidates`` restricts the body
     vertices searched, see ``proximity.culled_body_vertices``). With ``body_faces`` (F, 3) the

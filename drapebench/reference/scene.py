@@ -14,7 +14,7 @@ from drapebench.reference.materials import panel_coordinates, style3d_parameters
 from drapebench.reference.settings import SimSettings
 from drapebench.warp_env import wp
 
-newton = require("newton", "the reference simulator (reference=vbd|style3d, method=pbs, data presets)")
+newton = require("newton", "the reference simulator (reference=vbd|style3d, the simulator run as a method, data presets)")
 
 
 @wp.kernel

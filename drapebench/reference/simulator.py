@@ -3,7 +3,7 @@
 Schedule (one "timeline" of body poses at the sequence's fps):
 1. The garment starts as its template on the rest body (pose 0, translation 0) of shape
    ``seq.betas``; if that differs from ``garment.betas`` each vertex first moves by the shape
-   blend-shape offset of its nearest body vertex (what the LBS baseline does).
+   blend-shape offset of its nearest body vertex (what the skinning baseline does).
 2. ``settle_frames`` frames (not output): the body moves from the rest pose to the sequence's first
    frame over the first half (a C2 smoothstep; no motion at all when frame 0 is the rest pose, as
    for sequences with a transition prefix) and holds it for the rest, so the cloth comes to rest.
@@ -337,7 +337,7 @@ def _run(garment, seq, body, material: Material, settings: SimSettings, show_pro
     verts, transforms = _timeline(seq, body, S)
     _check_start(garment, start, torch.as_tensor(verts[0]), body)
 
-    name = f"pbs {settings.solver} {garment.name} {seq.name}"
+    name = f"reference {settings.solver} {garment.name} {seq.name}"
     log.info("%s: %d frames (%d settling) x %d substeps; warp loads its kernels now (the first time on a machine it "
              "compiles them, about 100 s on a CPU)", name, S + T, S, settings.substeps)  # fmt: skip
     from drapebench.reference.scene import ClothScene, resolve_device  # imports newton/warp
