@@ -11,7 +11,8 @@ again (what the canonical space itself costs). ``code gap`` is the distance betw
 training codes' std per dimension (RMS over dimensions, mean over frames): a large gap with a small oracle error
 puts the error in the regressor.
 
-With ``--retrain '<json of regressor keys>' --seeds 100,101``: the run's pose descriptor and regressor trained
+With ``--terms N``: Eq. 13's weighted terms on N projected training garments and each term's gradient norm over the
+VAE's weights (which term drives the decoder). With ``--retrain '<json of regressor keys>' --seeds 100,101``: the run's pose descriptor and regressor trained
 again (its VAE and data kept) with those ``method.params.regressor`` keys and each training seed, and the
 regressed drape's distance printed per seed (the measurements of reports/history.md, "Regressor training").
 """
@@ -70,11 +71,33 @@ def retrained_error(run_dir: Path, regressor: dict, seed: int) -> float:
     return float((m.drape(garment, seq).vertices[start:] - reference[start:]).norm(dim=-1).mean() * 1e3)
 
 
+def loss_terms(run_dir: Path, n_garments: int = 64) -> dict[str, tuple[float, str, float]]:
+    """Eq. 13's weighted terms of the vae run's trained VAE on ``n_garments`` of its projected training garments (the
+    first of each training sequence's frames in turn): {term: (value, unit, norm of the term's gradient over the
+    VAE's weights)}; units mm (reconstruction, Laplacian, collisions) and nats (KL per garment)."""
+    from methods.vae import losses
+
+    run = load_run(run_dir)
+    m = run.method
+    seqs, X = m.training_garments(run.garment, run.train_data(m))
+    train_idx, _ = m.validation_split(seqs)
+    batch = X[train_idx].transpose(0, 1).flatten(0, 1)[:n_garments]
+    terms = losses.vae_terms(m.vae, m.sdf, run.garment.topology.to(device=m.body.device), batch, m.p["vae"], m.p["projection"]["eps"], torch.Generator().manual_seed(0))
+    weights = [w for w in m.vae.parameters() if w.requires_grad]
+    out = {}
+    for name, value in terms.items():
+        grads = torch.autograd.grad(value, weights, retain_graph=True, allow_unused=True)
+        norm = float(torch.sqrt(sum(g.square().sum() for g in grads if g is not None)))
+        out[name] = (float(value), "nats" if name == "kl" else "mm", norm)
+    return out
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("runs", nargs="+", type=Path, help="run directories of vae runs (with config.yaml and metrics.json)")
     parser.add_argument("--retrain", help="JSON of regressor keys: train the pose descriptor and regressor again with them")
     parser.add_argument("--seeds", default="0", help="with --retrain: comma-separated training seeds")
+    parser.add_argument("--terms", type=int, default=0, help="also print Eq. 13's weighted terms and gradients on this many training garments")
     args = parser.parse_args(argv)
     if args.retrain:
         import json
@@ -86,10 +109,15 @@ def main(argv=None) -> None:
             for seed in map(int, args.seeds.split(",")):
                 print(f"{run.name} | {seed} | {retrained_error(run, keys, seed):.2f}", flush=True)
         return
-    print("run | regressed (mm) | oracle code (mm) | canonical (mm) | code gap (std)")
+    print("run | regressed (mm) | oracle code (mm) | mean code (mm) | canonical (mm) | code gap (std)")
     for run in args.runs:
         d = diagnose(run)
-        print(f"{run.name} | {d['regressed']:.2f} | {d['oracle code']:.2f} | {d['canonical']:.2f} | {d['code gap']:.2f}")
+        print(f"{run.name} | {d['regressed']:.2f} | {d['oracle code']:.2f} | {d['mean code']:.2f} | {d['canonical']:.2f} | {d['code gap']:.2f}")
+    if args.terms:
+        for run in args.runs:
+            print(f"{run.name}: Eq. 13's terms on {args.terms} training garments (value, norm of its gradient over the VAE's weights)")
+            for name, (value, unit, grad) in loss_terms(run, args.terms).items():
+                print(f"  {name:18s} {value:12.5g} {unit:6s} |grad| {grad:.4g} {unit}/weight")
 
 
 if __name__ == "__main__":

@@ -179,7 +179,7 @@ class VAEModel(DrapingMethod):
                     A = torch.stack([seqs[i].transforms(body).to(body.dtype) for i in idx])
                 betas = torch.stack([self.body.full_betas(seqs[i].betas) for i in idx])
                 frames = torch.stack([drapes[i].to(body.device, body.dtype) for i in idx])  # reference drapes, read on the CPU
-                p = project_sequences(self.diffused, self.sdf, self.topology, self.template, frames, betas, A, cfg,
+                p = project_sequences(self.diffused, self.sdf, garment.topology.to(device=body.device), self.template, frames, betas, A, cfg,
                                       desc=f"vae projection ({len(idx)} sequences)")  # fmt: skip
                 for j, i in enumerate(idx):
                     hit[i] = Projection(p.X[j].cpu(), p.residual_mm[j].cpu(), p.colliding[j].cpu())
