@@ -1,9 +1,14 @@
 """Structured-config schema of ``conf/``: typos and wrong types fail when Hydra composes the config, and
-keys added with ``+`` that nothing reads fail in :func:`check_keys` before a run starts."""
+keys added with ``+`` that nothing reads fail in :func:`check_keys` before a run starts. The nodes of the domain's
+own records (``material``, ``reference``) are made from their dataclasses (:func:`node`), not copied."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields, is_dataclass
+import copy
+import types
+import typing
+from dataclasses import MISSING as MISSING_FIELD
+from dataclasses import dataclass, field, fields, is_dataclass, make_dataclass
 from enum import Enum
 from typing import Any, Dict, List, Optional
 
@@ -11,6 +16,8 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING
 
 from drapebench.keys import check_known
+from drapebench.physics.material import Material
+from drapebench.reference.settings import SimSettings
 
 
 @dataclass
@@ -62,18 +69,68 @@ class MotionConf:
     root: Optional[RootPlacement] = None  # motion=amass: how the root translation is placed
 
 
+def node(cls: type, name: str, /, optional: bool = False, **defaults) -> type:
+    """The structured-config dataclass ``name`` with the fields of the domain dataclass ``cls``, in its order, typed as
+    OmegaConf checks them (a tuple as a list of its items' type, ``X | None`` as Optional[X], a dict as Dict[str, Any])
+    and with its defaults (``defaults`` replacing some); with ``optional`` every field is Optional with default None
+    (None: the code's default). The domain class stays the one declaration of its fields."""
+    hints = typing.get_type_hints(cls)
+    out = []
+    for f in fields(cls):
+        kind = _config_type(hints[f.name])
+        if optional:
+            out.append((f.name, Optional[kind], field(default=None)))
+            continue
+        value = defaults.get(f.name, f.default if f.default is not MISSING_FIELD else f.default_factory())
+        mutable = isinstance(value, (list, tuple, dict))
+        made = (lambda v=value: copy.deepcopy(list(v) if isinstance(v, tuple) else v)) if mutable else None
+        out.append((f.name, kind, field(default_factory=made) if mutable else field(default=value)))
+    return make_dataclass(name, out)
+
+
+def _config_type(hint) -> Any:
+    """The type OmegaConf checks a domain field of type ``hint`` as."""
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin in (typing.Union, types.UnionType):
+        inner = [a for a in args if a is not type(None)]
+        return Optional[_config_type(inner[0])] if len(inner) == 1 else Any
+    if hint is tuple or hint is list:
+        return List[Any]
+    if origin in (tuple, list):
+        return List[_config_type(args[0])] if args else List[Any]
+    if hint is dict or origin is dict:
+        return Dict[str, Any]
+    return hint
+
+
+MaterialConf = node(Material, "MaterialConf")
+ReferenceConf = node(SimSettings, "ReferenceConf", optional=True)  # None: conf/reference/<solver>.yaml's value
+
+
 @dataclass
-class MaterialConf:
-    name: str = "cotton"
-    thickness: float = 4.7e-4
-    bulk_density: float = 426.0
-    young: float = 7.0e4
-    poisson: float = 0.485
-    bending_multiplier: float = 50.0
-    collision_thickness: float = 2.0e-3
-    friction: float = 0.5
-    gravity: List[float] = field(default_factory=lambda: [0.0, 0.0, -9.81])
-    dt: float = 1.0 / 30.0
+class DataConf:
+    """Reference training data of supervised methods: the fields of drapebench.data.reference_set.ReferenceSetSpec,
+    spelled out because that module imports torch and composing a config must not (a bad override fails at once);
+    tests/test_keys.py holds the two field for field."""
+
+    name: str = "cpu"  # preset name (conf/data/<name>.yaml)
+    motions: List[str] = field(default_factory=lambda: ["random"])  # named motions and/or random
+    per_motion: int = 1
+    n_frames: int = 45
+    seed: int = 40000
+    fps: float = 30.0
+    transition: int = 15
+    beta_sigma: float = 1.0
+    beta_clip: float = 2.0
+    n_shape_betas: int = 4
+    params: Dict[str, Any] = field(default_factory=dict)  # per-motion parameters
+    solver: str = "vbd"
+    settings: Dict[str, Any] = field(default_factory=dict)  # overrides of conf/reference/<solver>.yaml
+    body: Optional[str] = None  # collider body; None: the run's body
+    n_jobs: int = 1
+    replace_failed: int = 0  # replacement draws per failed sequence
+    allow_held_out: bool = False  # kick and stress are test motions
+
 
 
 @dataclass
@@ -96,49 +153,6 @@ class TrainConf:
     max_minutes: Optional[float] = None  # time budget: stop with a warning and keep the best state
     checkpoint_every: int = 200  # steps between resumable checkpoints
     log_every: int = 10  # steps between progress-bar loss updates
-
-
-@dataclass
-class ReferenceConf:
-    """Physics-based reference of the test sequence (drapebench.reference.SimSettings fields;
-    None keeps the solver's default from conf/reference/<solver>.yaml)."""
-
-    solver: Optional[str] = None  # None: no reference in this run (reference=none)
-    substeps: Optional[int] = None
-    iterations: Optional[int] = None
-    settle_frames: Optional[int] = None
-    pins: Optional[bool] = None
-    self_contact: Optional[bool] = None
-    contact_ke: Optional[float] = None
-    contact_kd: Optional[float] = None
-    contact_gap: Optional[float] = None
-    damping: Optional[float] = None
-    max_speed: Optional[float] = None
-    device: Optional[str] = None  # None: cuda when available, else cpu
-    retry_substeps: Optional[List[int]] = None  # substeps tried in turn after a divergence; []: no retry
-
-
-@dataclass
-class DataConf:
-    """Reference training data of supervised methods (drapebench.data.reference_set.ReferenceSetSpec fields)."""
-
-    name: str = "cpu"  # preset name (conf/data/<name>.yaml)
-    motions: List[str] = field(default_factory=lambda: ["random"])  # named motions and/or random
-    per_motion: int = 1
-    n_frames: int = 45
-    seed: int = 40000
-    fps: float = 30.0
-    transition: int = 15
-    beta_sigma: float = 1.0
-    beta_clip: float = 2.0
-    n_shape_betas: int = 4
-    params: Dict[str, Any] = field(default_factory=dict)  # per-motion parameters
-    solver: str = "vbd"
-    settings: Dict[str, Any] = field(default_factory=dict)  # overrides of conf/reference/<solver>.yaml
-    body: Optional[str] = None  # collider body; None: the run's body
-    n_jobs: int = 1
-    replace_failed: int = 0  # replacement draws per failed sequence
-    allow_held_out: bool = False  # kick and stress are test motions
 
 
 @dataclass

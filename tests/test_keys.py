@@ -12,3 +12,52 @@ def test_an_unknown_key_is_named_with_the_closest_valid_one_and_every_valid_one(
         check_known(["zzz"], ["speed"], "parameter", "for motion 'walk'")
     check_known({"dt": 1.0}, ("thickness", "dt"), "material key")  # known keys pass
     check_known({}, (), "material key")
+
+
+def test_a_config_node_is_made_from_its_domain_dataclass_and_checks_its_types():
+    import typing
+    from dataclasses import dataclass, field, fields
+
+    from omegaconf import OmegaConf
+    from omegaconf.errors import ConfigAttributeError, ValidationError
+
+    from drapebench.data.reference_set import ReferenceSetSpec
+    from drapebench.physics.material import Material
+    from drapebench.reference.settings import SimSettings
+    from drapebench.schema import DataConf, MaterialConf, ReferenceConf, node
+
+    for conf, domain in ((MaterialConf, Material), (ReferenceConf, SimSettings)):
+        assert [f.name for f in fields(conf)] == [f.name for f in fields(domain)]  # one declaration of the fields
+    # DataConf is spelled out (ReferenceSetSpec's module imports torch): it must be ReferenceSetSpec's node, field for field
+    made = node(ReferenceSetSpec, "DataConf", name="cpu")
+    assert list(typing.get_type_hints(DataConf).items()) == list(typing.get_type_hints(made).items())
+    assert OmegaConf.to_container(OmegaConf.structured(DataConf)) == OmegaConf.to_container(OmegaConf.structured(made))
+
+    @dataclass(frozen=True)
+    class Toy:
+        size: float = 1.5
+        axes: tuple[int, ...] = (1, 2)
+        label: str | None = None
+        extra: dict = field(default_factory=dict)
+
+    conf = OmegaConf.structured(node(Toy, "ToyConf"))
+    assert OmegaConf.to_container(conf) == {"size": 1.5, "axes": [1, 2], "label": None, "extra": {}}
+    with pytest.raises(ValidationError):
+        conf.size = "big"
+    with pytest.raises(ValidationError):
+        conf.axes = ["x"]
+    with pytest.raises(ConfigAttributeError, match="Key 'sise' not in 'ToyConf'"):
+        conf.sise = 2.0
+    loose = OmegaConf.structured(node(Toy, "ToyOverrides", optional=True))
+    assert all(v is None for v in OmegaConf.to_container(loose).values())  # None: the code's default
+
+
+def test_composing_a_config_imports_no_torch():
+    """run.py registers the schema before Hydra composes: a bad override fails before the pipeline's imports."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    probe = "import sys, drapebench.schema; print(sorted(m for m in ('torch', 'numpy', 'warp') if m in sys.modules))"
+    p = subprocess.run([sys.executable, "-c", probe], cwd=Path(__file__).resolve().parent.parent, capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0 and p.stdout.strip() == "[]", p.stdout + p.stderr[-2000:]

@@ -58,7 +58,7 @@ class Material:
     bending_multiplier: float = 50.0
     collision_thickness: float = 2e-3
     friction: float = 0.5
-    gravity: tuple = field(default=(0.0, 0.0, -9.81))
+    gravity: tuple[float, float, float] = field(default=(0.0, 0.0, -9.81))
     dt: float = 1.0 / 30.0
 
     def __post_init__(self) -> None:
