@@ -18,8 +18,10 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
+import logging
 
 DECLARATIONS = ("metrics", "claims", "tables")  # module names in a method's package
+log = logging.getLogger(__name__)
 
 
 def method_packages() -> list[str]:
@@ -39,7 +41,11 @@ def declared(module: str, attribute: str) -> list:
     out = []
     for package in method_packages():
         name = f"{package}.{module}"
-        if importlib.util.find_spec(name) is None:
+        try:
+            found = importlib.util.find_spec(name)
+        except ModuleNotFoundError:  # a method that is one module, not a package: it declares nothing
+            found = None
+        if found is None:
             continue
         value = getattr(importlib.import_module(name), attribute, None)
         if value is not None:
@@ -49,8 +55,15 @@ def declared(module: str, attribute: str) -> list:
 
 def known_impl(name: str, impl: str | None) -> None:
     """Register a run's method ``name`` under its import path ``impl`` ("package.module:Class") when it has one, so
-    that its package's declarations are read beside the registered methods'; a registered name does nothing."""
+    that its package's declarations are read beside the registered methods'; a registered name does nothing, and a
+    path that does not import here is logged and left out (its diagnostics are then shown by their names)."""
     import methods
 
-    if impl and ":" in impl and name not in methods.available():
-        methods.register(name, impl)
+    if not impl or ":" not in impl or name in methods.available():
+        return
+    try:
+        methods.get(impl)
+    except (ImportError, TypeError) as err:
+        log.warning("%s: %s; its declarations (labels of its diagnostics) are not read", name, err)
+        return
+    methods.register(name, impl)

@@ -142,3 +142,11 @@ def test_the_method_name_finder_finds_a_name(tmp_path):
     (tmp_path / "drapebench" / "a.py").write_text('x = "GenSim\'s PEN"\ny = metrics["gaps_loss"]\nz = lbs(p)\n')
     (tmp_path / "drapebench" / "body" / "b.py").write_text("z = lbs(p)  # the skinning, allowed here\n")
     assert method_name_hits(tmp_path) == ["drapebench/a.py:1: GenSim", "drapebench/a.py:2: gaps_loss", "drapebench/a.py:3: lbs"]
+
+
+def test_a_run_of_a_method_that_does_not_import_here_is_read_without_its_declarations(caplog):
+    import methods
+    from drapebench.plugins import known_impl
+
+    known_impl("elsewhere", "nowhere.at_all:Thing")
+    assert "elsewhere" not in methods.available() and "method.impl='nowhere.at_all:Thing'" in caplog.text
