@@ -585,8 +585,11 @@ def evaluation_plot(dirs, path: Path, columns=tuple(EVALUATION_LABELS), title: s
         for j, col in enumerate(c for c in columns if c in ev):
             per_epoch = ev.groupby("epoch")[col]
             x = np.asarray(per_epoch.mean().index) + 1
-            rows += [{"method": method, "epoch": int(e), "quantity": col, "mean_pct": per_epoch.mean()[e - 1], "min_pct": per_epoch.min()[e - 1],
-                      "max_pct": per_epoch.max()[e - 1], "seeds": len(runs)} for e in x]  # fmt: skip
+            std = per_epoch.std(ddof=0)
+            cell = lambda e: f"{per_epoch.mean()[e]:.4f}" + (f" ± {std[e]:.4f} (n={len(runs)})" if len(runs) > 1 else "")  # noqa: E731
+            label = EVALUATION_LABELS.get(col, col)
+            rows.append({("", "method"): method, **{(label, f"epoch {e + 1} (%)"): cell(e) for e in per_epoch.mean().index},
+                         (label, "last epoch (%)"): cell(per_epoch.mean().index[-1])})  # fmt: skip
             label = f"{method}: {EVALUATION_LABELS.get(col, col)}" + (f" ({len(runs)} seeds)" if len(runs) > 1 else "")
             ax.plot(x, per_epoch.mean(), styles[j % len(styles)], color=f"C{i}", label=label)
             if len(runs) > 1:
@@ -598,11 +601,13 @@ def evaluation_plot(dirs, path: Path, columns=tuple(EVALUATION_LABELS), title: s
     ax.grid(alpha=0.3)
     scenes = ", ".join(sorted({f"{r['garment']} {r.get('body', '')}".strip() for _, r in df.iterrows()})) if "garment" in df else "unknown"
     command = f"python -m drapebench.report {' '.join(map(str, dirs))} --evaluations"
+    wide = pd.DataFrame([{k: v for k, v in r.items() if k != ("", "method")} for r in rows],
+                        index=pd.Index([r[("", "method")] for r in rows], name="method"))
+    wide = wide.groupby(level=0, sort=False).first()  # one row per method, its quantities side by side
+    wide.columns = pd.MultiIndex.from_tuples(wide.columns, names=["quantity", "metric"])
     write_csv(Path(path).with_suffix(".csv"), [provenance(df, command), f"Per-epoch evaluations (evaluations.csv) of the runs; "
-                                               f"garment(s) {scenes}.", "Legend: % of garment vertices inside "
-                                               "the canonical body (lower), mean / min / max over the training seeds; quantity: "
-                                               + "; ".join(f"{k}: {v}" for k, v in EVALUATION_LABELS.items()) + "."],
-              pd.DataFrame(rows), index=False, float_format="%.4f")  # fmt: skip
+                                               f"garment(s) {scenes}.", "Legend: % of garment vertices inside the canonical "
+                                               "body (lower) per training epoch, mean ± std over the training seeds (n)."], wide)  # fmt: skip
     return save_figure(fig, path)
 
 
