@@ -445,3 +445,20 @@ def test_the_vertical_root_descriptor_ignores_the_heading():
 def test_the_descriptor_is_computed_on_the_device_of_the_body_shape():
     seq = make_sequence("walk", 10, seed=1)  # a sequence's poses stay on the CPU; the body (here "meta") may not
     assert motion_descriptor(seq, seq.betas.to("meta")).device.type == "meta"
+
+
+def test_the_fig3_table_is_one_the_scoreboard_reads(tmp_path, monkeypatch):
+    """methods.vae.projection_table writes a row per projection and a group per garment (its rows stubbed here)."""
+    from drapebench.claims import read_table
+    from methods.vae import projection_table
+
+    def rows(garment, data):
+        return [{"garment": garment, "projection": label, "sequences": 2, "frames": 120, "eps_c_canonical": 0.1 * k,
+                 "eps_c_canonical_max": 0.2 * k, "reprojection_error_mm": 1.0 + k} for k, label in enumerate(projection_table.PROJECTIONS)]  # fmt: skip
+
+    monkeypatch.setattr(projection_table, "projection_rows", rows)
+    projection_table.main(["--garments", "tshirt,dress", "--out", str(tmp_path / "fig3")])
+    table = read_table(tmp_path / "fig3.csv")
+    assert table.rows() == list(projection_table.PROJECTIONS) and table.groups == ["tshirt", "dress"]
+    assert table.get("inverse skinning", "dress", "ε_c canon. (%)").mean == 0.1
+    assert table.get("optimised", "tshirt", "reproj. err. (mm)").mean == 1.0
