@@ -1,7 +1,8 @@
 """The pipeline behind ``run.py``: build (or load) the scene, train or load the method, drape, evaluate, write.
 
 Outputs in the Hydra run directory: ``metrics.json`` (one flat record), ``frames.csv`` (one row per
-frame), ``prediction.h5``, ``drape.rrd`` (unless ``viz=none``), ``export/`` (with ``export=usd|obj|pc2``:
+frame), ``prediction.h5`` (written as the drape is made, ``chunk_frames`` frames at a time for a method that streams:
+drapebench.drape_stream), ``drape.rrd`` (unless ``viz=none``), ``export/`` (with ``export=usd|obj|pc2``:
 drapebench.export), ``config.yaml`` (resolved, written first: it says whose folder it is) and ``env.json``
 (commit, package versions, device, threads), and ``losses.csv`` for a learned method (drapebench.train). Every
 file is written atomically. The finished run is then logged to MLflow (drapebench.tracker; ``tracker=none``: not). A folder that holds another run's results is refused; an earlier run of the same
@@ -15,7 +16,6 @@ import logging
 import os
 import shutil
 import time
-from dataclasses import replace
 from functools import partial
 from pathlib import Path
 
@@ -26,8 +26,8 @@ from omegaconf import DictConfig, OmegaConf
 
 from drapebench.body.dataset import dataset_hash
 from drapebench.cache import PROJECT_ROOT, Cache, atomic_write, body_key, content_hash, forcing, write_json
-from drapebench.errors import DrapeFailed, NonFiniteDrape
-from drapebench.results import METRICS, environment, git_commit, headline, write_prediction
+from drapebench.errors import DrapeFailed
+from drapebench.results import METRICS, environment, git_commit, headline
 from drapebench.scene import Scene
 from drapebench.schema import check_keys
 from drapebench.tracker import track_run
@@ -178,7 +178,8 @@ def _evaluate(cfg: DictConfig, garment, seq, body, prediction, reference, materi
     from drapebench.metrics import evaluate
 
     opts = {"skip_transition": bool(cfg.eval.skip_transition), "energies": bool(cfg.eval.energies)}
-    path = EVALUATIONS.path(_metrics_code_hash(), prediction, reference, garment.vertices, garment.faces, seq.betas, seq.poses,
+    content = getattr(prediction, "digest", prediction)  # a drape streamed to its file: the hash of its frames as written
+    path = EVALUATIONS.path(_metrics_code_hash(), content, reference, garment.vertices, garment.faces, seq.betas, seq.poses,
                             seq.trans, seq.n_transition, body_key(body), material, opts, prefix=f"{garment.kind}_{seq.name}")  # fmt: skip
 
     def read(p):
@@ -193,7 +194,7 @@ def _evaluate(cfg: DictConfig, garment, seq, body, prediction, reference, materi
                      **{f"col_{i}": frames[c].to_numpy() for i, c in enumerate(frames.columns)})  # fmt: skip
 
     def build():
-        return evaluate(garment, seq, body, prediction, reference=reference, material=material, **opts)
+        return evaluate(garment, seq, body, prediction, reference=reference, material=material, chunk_frames=int(cfg.chunk_frames), **opts)
 
     return EVALUATIONS.get_or_build(path, build, write, read, force=bool(cfg.force))
 
@@ -315,17 +316,13 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     if ckpt is not None:
         warn_untrained_shape(seq.betas, train_cfg, OmegaConf.to_container(cfg.method.params, resolve=True), cfg.method.name)
 
-    t = time.perf_counter()
-    on_device = method.drape(garment, seq)
-    if device.type == "cuda":  # the drape's time is its kernels', not their launch
-        torch.cuda.synchronize(device)
-    drape_s = time.perf_counter() - t
-    from drapebench.metrics import nonfinite_frames
+    from drapebench.drape_stream import stream_drape
+    from drapebench.export import input_hashes
 
-    bad = nonfinite_frames(on_device.vertices)
-    if bad:
-        raise NonFiniteDrape(cfg.method.name, bad, seq.n_frames)
-    result = replace(on_device, vertices=on_device.vertices.cpu(), extras={k: v.cpu() for k, v in on_device.extras.items()})
+    attrs = {"method": cfg.method.name, "garment": garment.kind, "motion": seq.name, "body": cfg.body.name, "fps": seq.fps,
+             "n_transition": seq.n_transition, "inputs": json.dumps(input_hashes(garment, seq, body))}  # inputs: what an export checks  # fmt: skip
+    streamed = stream_drape(method, garment, seq, out / "prediction.h5", int(cfg.chunk_frames), cfg.method.name, attrs)
+    on_device, result, drape_s = streamed.on_device, streamed.result, streamed.drape_s
     t = time.perf_counter()
     summary, frames = _evaluate(cfg, garment, seq, body, result.vertices, reference, material)
     for variant, drape in method.scored_variants(seq, on_device).items():  # the same metrics, suffixed @variant
@@ -341,17 +338,12 @@ def _run(cfg: DictConfig, out: Path) -> dict:
         **{f"ms_{k}": v / seq.n_frames for k, v in result.timings_ms.items() if k != "setup"},
         "seed": int(cfg.seed), "train_seed": int(cfg.train.seed), "device": str(cfg.device), "experiment": cfg.experiment_name, "checkpoint": ckpt, "commit": git_commit(),
     }  # fmt: skip
-    from drapebench.export import input_hashes
-
-    write_prediction(out / "prediction.h5", result.vertices, garment.faces, method=cfg.method.name, garment=garment.kind,
-                     motion=seq.name, body=cfg.body.name, fps=seq.fps, n_transition=seq.n_transition,
-                     inputs=json.dumps(input_hashes(garment, seq, body)))  # what an export checks  # fmt: skip
     if export != "none":
         from drapebench.export import Drape, export_drape
 
         t = time.perf_counter()
         label = f"{cfg.method.name} {garment.kind} on {seq.name} ({cfg.body.name})"
-        paths = export_drape(out, Drape.from_scene(result.vertices, garment, seq, body, label), export)
+        paths = export_drape(out, Drape.from_scene(result.vertices[:], garment, seq, body, label), export)
         stages["export_s"] = time.perf_counter() - t
         log.info("exported the drape (%s): %d file(s) in %s", export, len(paths), paths[0].parent)
     with atomic_write(out / "frames.csv", "w") as f:
@@ -362,12 +354,13 @@ def _run(cfg: DictConfig, out: Path) -> dict:
         from drapebench.viz import record_drape
 
         t = time.perf_counter()
-        inside = inside_body(result.vertices, seq.vertices(body), body.faces)  # the rule behind eps_c
+        vertices = result.vertices[:]  # the whole drape, as the recording holds it
+        inside = inside_body(vertices, seq.vertices(body), body.faces)  # the rule behind eps_c
         shown = body if cfg.viz_body is None else load_body(cfg.viz_body)  # a lighter body, same motion
         if shown.n_joints != body.n_joints:
             raise ValueError(f"viz_body={cfg.viz_body} has {shown.n_joints} joints, the run's body {body.name} {body.n_joints}: "
                              "it cannot play the same motion; choose a body of the same skeleton (anny, anny_lowres)")  # fmt: skip
-        record_drape(out / "drape.rrd", seq.vertices(shown), shown.faces, result.vertices, garment.topology, seq.fps,
+        record_drape(out / "drape.rrd", seq.vertices(shown), shown.faces, vertices, garment.topology, seq.fps,
                      penetrating=inside, reference=reference, stages=result.extras, metrics=frames,
                      name=f"{cfg.method.name}_{garment.kind}_{seq.name}", in_place=seq.trans, displaced_from=method.displaced_from)  # fmt: skip
         stages["viz_s"] = time.perf_counter() - t

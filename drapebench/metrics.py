@@ -28,17 +28,28 @@ class FarFromOrigin(ValueError):
     """Float32 positions too far from the origin to resolve a garment's edges; the message says how far and the fix."""
 
 
-def _check_positions(x, n_frames: int, n_vertices: int, what: str) -> torch.Tensor:
-    """(T, V, 3) finite tensor, or a ValueError naming the shape or the frames with NaN/Inf."""
-    p = torch.as_tensor(x)
+def _check_positions(x, n_frames: int, n_vertices: int, what: str):
+    """``x`` as a (T, V, 3) tensor (a :class:`drapebench.results.StoredFrames` as it is: read a chunk at a time), or a
+    ValueError naming the shape. Its values are checked chunk by chunk as they are read (:func:`_checked_frames`)."""
+    from drapebench.results import StoredFrames
+
+    p = x if isinstance(x, StoredFrames) else torch.as_tensor(x)
     if p.shape != (n_frames, n_vertices, 3):
         raise ValueError(f"{what} has shape {tuple(p.shape)}; expected ({n_frames}, {n_vertices}, 3) for this garment "
                          "and sequence (one row per frame of the sequence, one per garment vertex)")  # fmt: skip
-    frames = nonfinite_frames(p)
+    return p
+
+
+def _checked_frames(x, start: int, stop: int, what: str) -> torch.Tensor:
+    """Frames [start, stop) of positions ``x`` (T, V, 3) as a tensor; ValueError naming the frames with NaN/Inf, and
+    :class:`FarFromOrigin` (:func:`check_near_origin`)."""
+    part = x[start:stop]
+    frames = [start + t for t in nonfinite_frames(part)]
     if frames:
         more = f" and {len(frames) - 10} more" if len(frames) > 10 else ""
         raise ValueError(f"{what} contains NaN/Inf in frames {frames[:10]}{more}")
-    return p
+    check_near_origin(part, what)
+    return part
 
 
 CHUNK_FRAMES = 256  # frames evaluated together: bounds evaluate()'s memory on long sequences
@@ -68,15 +79,17 @@ def evaluate(
     Args:
         garment: :class:`drapebench.garments.Garment` (its ``topology`` is the template).
         seq: :class:`drapebench.body.BodySequence`; body: the :class:`BodyModel` it poses.
-        prediction: (T, V, 3) draped vertices (m) for all T frames of ``seq``.
+        prediction: (T, V, 3) draped vertices (m) for all T frames of ``seq``: a tensor, or a drape streamed to
+            its file (:class:`drapebench.results.StoredFrames`), read a chunk at a time.
         reference: optional (T, V, 3) physics-based drape of the same scene.
         material: :class:`drapebench.physics.Material` for the energy breakdown (default Material()).
         skip_transition: leave the sequence's ``n_transition`` leading frames out.
         energies: add the per-frame ``energy_*`` columns.
         exact: the libigl signed distance and a KD-tree nearest vertex instead of the warp BVH (same
             values within the tolerance in :mod:`drapebench.geometry.sdf`).
-        chunk_frames: frames evaluated at once; the body is posed per chunk unless ``seq`` already
-            holds its posed geometry, so memory stays bounded as sequences grow.
+        chunk_frames: frames evaluated (and checked for NaN/Inf and distance from the origin) at once; the body
+            is posed per chunk unless ``seq`` already holds its posed geometry, so memory stays bounded as
+            sequences grow.
     Returns:
         (summary dict of floats, per-frame DataFrame with a ``frame`` column and one column per metric).
     """
@@ -86,13 +99,12 @@ def evaluate(
     device, dtype = topo.device, topo.dtype
     p = _check_positions(prediction, seq.n_frames, garment.n_vertices, "prediction")
     ref = None if reference is None else _check_positions(reference, seq.n_frames, garment.n_vertices, "reference")
-    for what, positions in (("prediction", p), ("reference", ref)):
-        if positions is not None:
-            check_near_origin(positions, what)
     first = seq.n_transition if skip_transition and seq.n_transition < seq.n_frames else 0
+    for what, positions in (("prediction", p), ("reference", ref)):  # the frames left out are checked too
+        if positions is not None and first:
+            _checked_frames(positions, 0, first, what)
     faces, outer = body.faces.to(device), body.outer_faces.to(device)
     origin = seq.trans.to(device, torch.float64)  # (T, 3) m: every frame is measured relative to its root
-    jitter = _jitter(p, chunk_frames)[first:]
     material = material or Material()
     mass = float(topo.vertex_masses(material).double().sum()) if energies else 0.0  # kg: the garment's, fixed per garment
     chunks, depth_sum, n_inside = [], [], []
@@ -100,13 +112,15 @@ def evaluate(
         bar = progress(total=seq.n_frames - first, desc="metrics", unit="frames")
         for start in range(first, seq.n_frames, chunk_frames):
             stop = min(start + chunk_frames, seq.n_frames)
-            world = p[start:stop].to(device, torch.float64)
+            lo, hi = max(start - 1, 0), min(stop + 1, seq.n_frames)  # one frame either side, for the jitter
+            window = _checked_frames(p, lo, hi, "prediction").to(device, torch.float64)
+            world = window[start - lo : stop - lo]
             x = (world - origin[start:stop, None]).to(dtype)  # local: float32 keeps its resolution at the body's scale
             body_v, body_n = (t.to(device, dtype) for t in seq.posed_frames(body, start, stop, local=True))
             cols, nn, depth, n_in = _frame_metrics(x, topo, body_v, body_n, faces, outer, exact)
-            cols["jitter"] = jitter[start - first : stop - first]
+            cols["jitter"] = _jitter(window)[start - lo : stop - lo]
             if ref is not None:
-                cols["vertex_error_mm"] = (world - ref[start:stop].to(device, torch.float64)).norm(dim=-1).mean(-1) * 1e3
+                cols["vertex_error_mm"] = (world - _checked_frames(ref, start, stop, "reference").to(device, torch.float64)).norm(dim=-1).mean(-1) * 1e3
             if energies:
                 terms = energy_terms(x, topo, material, near=nn)
                 cols.update({f"energy_{k}": v for k, v in terms.items()})
@@ -133,14 +147,14 @@ def drift(per_frame: np.ndarray, share: float = 0.1) -> float:
     return float(abs(per_frame[-n:].mean() - per_frame[:n].mean())) if n >= 1 else float("nan")
 
 
-def _jitter(x: torch.Tensor, chunk_frames: int) -> torch.Tensor:
-    """(T,) float64 mean |x[t+1] - 2 x[t] + x[t-1]| in mm of positions x (T, V, 3) m, computed in float64
-    (exact for the given positions wherever they are), NaN at the first and last frame."""
-    acc = torch.full((x.shape[0],), float("nan"), dtype=torch.float64)
-    for start in range(1, x.shape[0] - 1, chunk_frames):
-        stop = min(start + chunk_frames, x.shape[0] - 1)
-        w = x[start - 1 : stop + 1].double()
-        acc[start:stop] = ((w[2:] - 2 * w[1:-1] + w[:-2]).norm(dim=-1).mean(-1) * 1e3).cpu()
+def _jitter(window: torch.Tensor) -> torch.Tensor:
+    """(B,) float64 mean |x[t+1] - 2 x[t] + x[t-1]| in mm of consecutive frames x (B, V, 3) m, computed in float64
+    (exact for the given positions wherever they are); NaN at the window's two ends (whose neighbour it does not
+    hold: a sequence's first and last frame)."""
+    acc = torch.full((window.shape[0],), float("nan"), dtype=torch.float64)
+    if window.shape[0] > 2:
+        w = window.double()
+        acc[1:-1] = ((w[2:] - 2 * w[1:-1] + w[:-2]).norm(dim=-1).mean(-1) * 1e3).cpu()
     return acc
 
 

@@ -11,7 +11,7 @@ from typing import Iterable, TypeVar
 from tqdm.auto import tqdm
 
 T = TypeVar("T")
-LOG_EVERY_S = 5.0  # s: the time between two logged progress lines (a stage shorter than this logs none)
+LOG_EVERY_S = 5.0  # s: the least time between two logged progress lines (a run shorter than this logs none)
 LOG_FORMAT = "{desc}: {n_fmt}/{total_fmt} {unit} ({percentage:.0f} %) in {elapsed}, about {remaining} left ({rate_fmt})"
 
 
@@ -30,26 +30,42 @@ def progress_logged() -> bool:
 
 
 class _LogLines:
-    """A file for tqdm that logs (logger ``drapebench``, INFO) a line at most every :data:`LOG_EVERY_S` seconds, none
-    before the first such interval has passed (a short loop stays silent)."""
+    """A file for tqdm that logs (logger ``drapebench``, INFO) a line at most every :data:`LOG_EVERY_S` seconds over
+    all stages together, none before the first such interval has passed (a short run stays silent); a stage that ran
+    that long logs its last line when it ends (``closing``), so the work after it starts from a fresh line."""
+
+    last = time.monotonic()  # when any stage last logged a line (or this module was imported)
 
     def __init__(self) -> None:
-        self.last = time.monotonic()
+        self.start, self.closing = time.monotonic(), False
 
     def write(self, text: str) -> None:
-        text = text.strip()
-        if text and time.monotonic() - self.last >= LOG_EVERY_S:
+        text, now = text.strip(), time.monotonic()
+        if text and (now - _LogLines.last >= LOG_EVERY_S or (self.closing and now - self.start >= LOG_EVERY_S)):
             logging.getLogger("drapebench").info("%s", text)
-            self.last = time.monotonic()
+            _LogLines.last = now
 
     def flush(self) -> None:
         pass
 
 
+class _LoggedBar(tqdm):
+    """tqdm writing its lines to :class:`_LogLines`, which it tells when it closes."""
+
+    def __init__(self, *args, **kw) -> None:
+        self.lines = _LogLines()
+        super().__init__(*args, file=self.lines, mininterval=1.0, miniters=1, bar_format=LOG_FORMAT, **kw)
+
+    def close(self) -> None:
+        self.lines.closing = True
+        super().close()
+
+
 def progress(iterable: Iterable[T] | None = None, desc: str = "", total: int | None = None, unit: str = "it", **kw) -> tqdm:
     """A tqdm bar on a terminal; where stderr is none (:func:`progress_logged`), a log line with the count, the time
-    spent and the estimate left every :data:`LOG_EVERY_S` s; nothing under CI or ``DRAPEBENCH_PROGRESS=0``. Use
-    ``.set_postfix`` for live figures, ``.update(n)`` for chunks."""
+    spent and the estimate left at most every :data:`LOG_EVERY_S` s (over all stages: a new stage's first line comes
+    as soon as that much time has passed since the last line) and the last line of a stage that ran that long;
+    nothing under CI or ``DRAPEBENCH_PROGRESS=0``. Use ``.set_postfix`` for live figures, ``.update(n)`` for chunks."""
     if progress_logged():
-        return tqdm(iterable, desc=desc, total=total, unit=unit, file=_LogLines(), mininterval=1.0, miniters=1, bar_format=LOG_FORMAT, **kw)
+        return _LoggedBar(iterable, desc=desc, total=total, unit=unit, **kw)
     return tqdm(iterable, desc=desc, total=total, unit=unit, disable=not progress_enabled(), dynamic_ncols=True, **kw)

@@ -3,11 +3,14 @@
 
 from __future__ import annotations
 
+import contextlib
+import hashlib
 import platform
 import subprocess
 from functools import lru_cache
 from importlib import metadata
 from pathlib import Path
+from typing import Iterator
 
 import h5py
 import numpy as np
@@ -143,22 +146,87 @@ def environment(device: str) -> dict:
     }  # fmt: skip
 
 
-PREDICTION_CHUNK = 1024  # frames converted and written at once by write_prediction
+PREDICTION_CHUNK = 1024  # frames converted and written at once by PredictionWriter.append
+H5_CHUNK_FRAMES = 8  # frames per compressed h5 chunk of prediction.h5 (8 x 2,796 vertices: 0.27 MB in float32)
 
 
-def write_prediction(path: str | Path, vertices: torch.Tensor, faces: torch.Tensor, **attrs) -> None:
-    """Write draped vertices (T, V, 3) m (float64 kept float64: a float64 run's file is exact far from the origin;
-    anything else as float32) and faces (F, 3) with scalar/string attributes to h5, atomically; the vertices are
-    converted and written :data:`PREDICTION_CHUNK` frames at a time (no second copy of a long drape)."""
-    x = torch.as_tensor(vertices)
-    dtype = np.float64 if x.dtype == torch.float64 else np.float32
+class PredictionWriter:
+    """The ``vertices`` (T, V, 3) m of an open prediction file (:func:`prediction_writer`), written as a drape is made:
+    :meth:`append` adds the next frames; ``digest`` is the content hash of the frames written so far (what a
+    :class:`StoredFrames` of the file carries, so nothing re-reads the file to hash it)."""
+
+    def __init__(self, file: h5py.File, n_frames: int, n_vertices: int) -> None:
+        self.file, self.shape, self.n_written = file, (n_frames, n_vertices, 3), 0
+        self.data, self._hash = None, None
+
+    def append(self, vertices: torch.Tensor) -> None:
+        """Write the next frames ``vertices`` (B, V, 3) m (float64 kept float64: a float64 run's file is exact far from
+        the origin; anything else as float32), :data:`PREDICTION_CHUNK` frames converted at a time (no second copy of
+        a long drape). ValueError for a shape other than the file's, or frames beyond its length."""
+        x = torch.as_tensor(vertices)
+        if x.shape[1:] != self.shape[1:] or self.n_written + len(x) > self.shape[0]:
+            raise ValueError(f"frames of shape {tuple(x.shape)} do not fit frames {self.n_written}.. of a prediction of shape {self.shape}")
+        if self.data is None:  # the first frames fix the file's dtype
+            dtype = np.float64 if x.dtype == torch.float64 else np.float32
+            chunks = (max(1, min(H5_CHUNK_FRAMES, self.shape[0])), *self.shape[1:])
+            self.data = self.file.create_dataset("vertices", shape=self.shape, dtype=dtype, chunks=chunks, compression="gzip", compression_opts=1)
+            self._hash = hashlib.sha256(f"{np.dtype(dtype).str}{self.shape};".encode())
+        for a in range(0, len(x), PREDICTION_CHUNK):
+            part = np.ascontiguousarray(x[a : a + PREDICTION_CHUNK].detach().cpu().numpy().astype(self.data.dtype, copy=False))
+            self.data[self.n_written : self.n_written + len(part)] = part
+            self._hash.update(part.reshape(-1).view(np.uint8))
+            self.n_written += len(part)
+
+    @property
+    def digest(self) -> str:
+        """Hex SHA-256 of the file's dtype, shape and the bytes of the frames written so far."""
+        return self._hash.hexdigest()
+
+
+@contextlib.contextmanager
+def prediction_writer(path: str | Path, n_frames: int, faces: torch.Tensor, n_vertices: int, **attrs) -> Iterator[PredictionWriter]:
+    """A prediction file (``vertices`` (n_frames, V, 3), ``faces`` (F, 3) int32, scalar/string ``attrs``) written
+    atomically: a temporary file that is renamed onto ``path`` once all ``n_frames`` frames were appended
+    (:meth:`PredictionWriter.append`) and the block ends without an exception; removed otherwise (ValueError when
+    frames are missing)."""
     with atomic_write(path, mode=None) as tmp, h5py.File(tmp, "w") as f:
-        out = f.create_dataset("vertices", shape=tuple(x.shape), dtype=dtype, compression="gzip", compression_opts=1)
-        for a in progress(range(0, len(x), PREDICTION_CHUNK), desc=f"writing {Path(path).name}", unit="chunk"):
-            out[a : a + PREDICTION_CHUNK] = x[a : a + PREDICTION_CHUNK].detach().cpu().numpy().astype(dtype, copy=False)
         f.create_dataset("faces", data=np.asarray(faces, dtype=np.int32))
         for k, v in attrs.items():
             f.attrs[k] = v
+        writer = PredictionWriter(f, n_frames, n_vertices)
+        yield writer
+        if writer.n_written != n_frames:
+            raise ValueError(f"{Path(path).name}: {writer.n_written} of {n_frames} frames were written; the file was not kept")
+
+
+def write_prediction(path: str | Path, vertices: torch.Tensor, faces: torch.Tensor, **attrs) -> None:
+    """Write draped vertices (T, V, 3) m (float64 kept float64, anything else as float32) and faces (F, 3) with
+    scalar/string attributes to h5, atomically (:func:`prediction_writer`; converted a chunk at a time)."""
+    x = torch.as_tensor(vertices)
+    with prediction_writer(path, len(x), faces, x.shape[1], **attrs) as writer:
+        for a in progress(range(0, len(x), PREDICTION_CHUNK), desc=f"writing {Path(path).name}", unit="chunk"):
+            writer.append(x[a : a + PREDICTION_CHUNK])
+
+
+class StoredFrames:
+    """The ``vertices`` (T, V, 3) of a prediction file, read on demand: ``frames[a:b]`` is a tensor of the frames
+    [a, b) in the file's dtype; ``shape``, ``dtype`` and ``len`` as a tensor's; ``digest`` the content hash its
+    :class:`PredictionWriter` computed. A long drape is evaluated or exported from it without being held."""
+
+    def __init__(self, path: str | Path, digest: str) -> None:
+        self.path, self.digest = Path(path), digest
+        with h5py.File(self.path, "r") as f:
+            self.shape = torch.Size(f["vertices"].shape)
+            self.dtype = torch.float64 if f["vertices"].dtype == np.float64 else torch.float32
+
+    def __len__(self) -> int:
+        return self.shape[0]
+
+    def __getitem__(self, frames: slice) -> torch.Tensor:
+        if not isinstance(frames, slice):
+            raise TypeError(f"StoredFrames are read by a slice of frames, e.g. frames[a:b], not {frames!r}")
+        with h5py.File(self.path, "r") as f:
+            return torch.from_numpy(f["vertices"][frames])
 
 
 def read_prediction(path: str | Path) -> tuple[np.ndarray, np.ndarray, dict]:

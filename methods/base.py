@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
-from typing import Any, Mapping
+from typing import Any, Iterable, Iterator, Mapping
 
 import torch
 
@@ -22,6 +22,25 @@ class DrapeResult:
     vertices: torch.Tensor
     timings_ms: dict[str, float] = field(default_factory=dict)
     extras: dict[str, torch.Tensor] = field(default_factory=dict)
+
+    @classmethod
+    def joined(cls, chunks: Iterable[DrapeResult], n_frames: int) -> DrapeResult:
+        """One result of consecutive chunks of frames (:meth:`DrapingMethod.drape_chunks`) that make ``n_frames``
+        frames: their vertices filled into one (n_frames, V, 3) tensor as they come (no second copy), their timings
+        summed; extras of a single chunk kept (chunks of several carry none)."""
+        vertices, timings, extras, n = None, {}, {}, 0
+        for chunk in chunks:
+            if vertices is None:
+                vertices, extras = chunk.vertices.new_empty((n_frames, *chunk.vertices.shape[1:])), chunk.extras
+            else:
+                extras = {}
+            vertices[n : n + len(chunk.vertices)] = chunk.vertices
+            n += len(chunk.vertices)
+            for k, v in chunk.timings_ms.items():
+                timings[k] = timings.get(k, 0.0) + v
+        if n != n_frames:
+            raise ValueError(f"the chunks hold {n} frames, not {n_frames}")
+        return cls(vertices, timings, extras)
 
 
 @dataclass
@@ -74,9 +93,19 @@ class DrapingMethod(ABC):
     def drape(self, garment, seq) -> DrapeResult:
         """Drape ``garment`` over body sequence ``seq``; inference only, returns (T, V, 3) vertices."""
 
+    def drape_chunks(self, garment, seq, chunk_frames: int) -> Iterator[DrapeResult]:
+        """The drape of :meth:`drape` as consecutive chunks of frames, each a :class:`DrapeResult` of those frames
+        with its share of the timings; what a run calls, writing each chunk to ``prediction.h5`` as it comes. A method
+        that drapes frame by frame yields chunks of at most ``chunk_frames`` frames as it makes them, so a long drape
+        is never held whole (lbs); the default yields :meth:`drape` whole, one chunk, for methods that need the whole
+        sequence."""
+        yield self.drape(garment, seq)
+
     def scored_variants(self, seq, result: DrapeResult) -> dict[str, torch.Tensor]:
         """Other drapes (T, V, 3) m of the same frames that a run scores beside ``result.vertices`` with the same
-        metrics (metrics.json: ``<metric>@<name>``), computed outside the drape's timing; none by default."""
+        metrics (metrics.json: ``<metric>@<name>``), computed outside the drape's timing; none by default. For a drape
+        that came in several chunks (:meth:`drape_chunks`), ``result.vertices`` is its file's
+        :class:`drapebench.results.StoredFrames` (``vertices[a:b]`` a tensor), here and in :meth:`diagnostics`."""
         return {}
 
     def diagnostics(self, garment, seq, result: DrapeResult) -> dict[str, float]:

@@ -353,7 +353,7 @@ def test_a_tiny_fps_that_sends_the_root_kilometres_away_is_refused_before_the_dr
     import methods.lbs.method as lbs
     from drapebench.metrics import FarFromOrigin
 
-    monkeypatch.setattr(lbs.LBSMethod, "drape", lambda *a: pytest.fail("draped a scene float32 cannot measure"))
+    monkeypatch.setattr(lbs.LBSMethod, "drape_chunks", lambda *a: pytest.fail("draped a scene float32 cannot measure"))
     cfg = _compose(["body=anny_lowres", "viz=none", "motion.fps=0.001", "motion.n_frames=4", "motion.transition=0"])
     with pytest.raises(FarFromOrigin, match=r"the motion's root lies up to \d+ m from the origin, .*dtype=float64"):
         run(cfg, tmp_path / "out")

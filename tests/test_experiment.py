@@ -318,10 +318,10 @@ def test_a_diverged_method_stops_the_run_or_is_recorded(tmp_path, monkeypatch, o
     from drapebench.experiment import run
     from methods.lbs.method import LBSMethod
 
-    def diverge(self, garment, seq):
+    def diverge(self, garment, seq, chunk_frames):
         raise DrapeFailed(f"{garment.kind} diverged at frame 3")
 
-    monkeypatch.setattr(LBSMethod, "drape", diverge)
+    monkeypatch.setattr(LBSMethod, "drape_chunks", diverge)  # what a run calls
     cfg = _compose([*FAST, "viz=none", f"on_failure={on_failure}"])
     out = tmp_path / "run"
     if on_failure == "stop":
@@ -417,18 +417,20 @@ def test_a_drape_with_nan_is_a_failure_naming_its_frames(tmp_path, monkeypatch):
     from methods.base import DrapeResult
     from methods.lbs.method import LBSMethod
 
-    drape = LBSMethod.drape
+    drape_chunks = LBSMethod.drape_chunks
 
-    def nan_at_2(self, garment, seq):
-        x = drape(self, garment, seq).vertices.clone()
-        x[2, 7, 1] = float("nan")
-        return DrapeResult(x, {})
+    def nan_at_2_and_9(self, garment, seq, chunk_frames):  # streamed in chunks of 4 frames: frames 2 and 9 in two of them
+        for a, chunk in zip(range(0, seq.n_frames, chunk_frames), drape_chunks(self, garment, seq, chunk_frames)):
+            x = chunk.vertices.clone()
+            x[[f - a for f in (2, 9) if a <= f < a + len(x)], 7, 1] = float("nan")
+            yield DrapeResult(x, {})
 
-    monkeypatch.setattr(LBSMethod, "drape", nan_at_2)
+    monkeypatch.setattr(LBSMethod, "drape_chunks", nan_at_2_and_9)
     out = tmp_path / "run"
-    rec = run(_compose([*FAST, "viz=none", "on_failure=record"]), out)
-    assert rec["error"] == "NonFiniteDrape" and "NaN/Inf vertex positions in 1 of" in rec["message"] and "frames 2)" in rec["message"]
-    assert not (out / "metrics.json").exists()
+    rec = run(_compose([*FAST, "viz=none", "on_failure=record", "chunk_frames=4"]), out)
+    assert rec["error"] == "NonFiniteDrape" and "NaN/Inf vertex positions in 2 of 13" in rec["message"] and "frames 2, 9)" in rec["message"]
+    assert not (out / "metrics.json").exists() and not (out / "prediction.h5").exists()
+    assert [p.name for p in out.iterdir() if p.name.startswith(".")] == []  # no temporary file left
 
 
 def test_dtype_float64_runs_body_garment_method_and_metrics_in_double(tmp_path, monkeypatch):
@@ -436,14 +438,14 @@ def test_dtype_float64_runs_body_garment_method_and_metrics_in_double(tmp_path, 
     from methods.lbs.method import LBSMethod
 
     seen = {}
-    drape = LBSMethod.drape
+    drape_chunks = LBSMethod.drape_chunks
 
-    def spy(self, garment, seq):
-        result = drape(self, garment, seq)
-        seen.update(body=self.body.dtype, topology=garment.topology.dtype, drape=result.vertices.dtype)
-        return result
+    def spy(self, garment, seq, chunk_frames):
+        for result in drape_chunks(self, garment, seq, chunk_frames):
+            seen.update(body=self.body.dtype, topology=garment.topology.dtype, drape=result.vertices.dtype)
+            yield result
 
-    monkeypatch.setattr(LBSMethod, "drape", spy)
+    monkeypatch.setattr(LBSMethod, "drape_chunks", spy)
     rec64 = run(_compose([*FAST, "viz=none", "dtype=float64"]), tmp_path / "a")
     assert seen == {"body": torch.float64, "topology": torch.float64, "drape": torch.float64} and rec64["dtype"] == "float64"
     rec32 = run(_compose([*FAST, "viz=none"]), tmp_path / "b")
@@ -550,3 +552,62 @@ def test_a_float64_run_30_km_from_the_origin_measures_what_it_measures_at_the_or
     assert np.abs(x_far - offset - x_here).max() < 1e-9  # m: the same drape, moved
     with pytest.raises(FarFromOrigin, match="dtype=float64"):
         run(_compose([*common[:-1], f"motion.path={tmp_path / 'far'}.npz"]), tmp_path / "far32")
+
+
+def _numbers(record: dict) -> dict:
+    """A run record's measurements: its numbers other than timings."""
+    timing = ("ms_per_frame", "train_s", "setup_s")
+    return {k: v for k, v in record.items() if isinstance(v, (int, float)) and not k.startswith("ms_") and not k.endswith("_s") and k not in timing}
+
+
+def test_a_streamed_lbs_drape_writes_and_scores_what_a_whole_one_does(tmp_path):
+    """chunk_frames=4: the lbs drape is made, written to prediction.h5 and scored 4 frames at a time (issue 59); the
+    file is that of the drape made whole (chunk_frames=1000), frames.csv and the metrics too, to float32 rounding."""
+    import numpy as np
+    import pandas as pd
+
+    from drapebench.experiment import run
+    from drapebench.results import read_prediction
+
+    scene = [*FAST, "viz=none", "motion.n_frames=20", f"motion.seed={int.from_bytes(os.urandom(3), 'little')}"]  # nothing cached
+    whole = run(_compose([*scene, "chunk_frames=1000"]), tmp_path / "whole")
+    streamed = run(_compose([*scene, "chunk_frames=4"]), tmp_path / "streamed")
+    (xw, fw, aw), (xs, fs, as_) = (read_prediction(tmp_path / d / "prediction.h5") for d in ("whole", "streamed"))
+    assert xs.shape == (23, 2796, 3) and np.array_equal(xs, xw) and np.array_equal(fs, fw) and as_ == aw
+    assert _numbers(streamed).keys() == _numbers(whole).keys() and "eps_e" in _numbers(whole)
+    for k, v in _numbers(whole).items():
+        assert streamed[k] == pytest.approx(v, rel=1e-6, abs=1e-9, nan_ok=True), k  # float32 metrics of other batches
+    frames = [pd.read_csv(tmp_path / d / "frames.csv") for d in ("whole", "streamed")]
+    pd.testing.assert_frame_equal(frames[1], frames[0], rtol=1e-6)
+
+
+def test_a_streamed_lbs_run_holds_no_garment_array_that_grows_with_its_frames(tmp_path):
+    """The largest array of garment positions (a tensor with a dimension of the garment's 2,796 vertices) that any torch
+    operation of a whole lbs run reads or makes (drape, checks, prediction.h5, metrics, frames.csv) is the same for 10
+    and 40 frames with chunk_frames=4: the drape is never held whole; with chunk_frames=1000 it is, and grows."""
+    from torch.utils._python_dispatch import TorchDispatchMode
+    from torch.utils._pytree import tree_leaves
+
+    from drapebench.experiment import run
+
+    class Largest(TorchDispatchMode):
+        bytes = 0
+
+        def __torch_dispatch__(self, func, types, args=(), kwargs=None):
+            out = func(*args, **(kwargs or {}))
+            for t in tree_leaves((args, kwargs, out)):
+                if isinstance(t, torch.Tensor) and t.layout == torch.strided and 2796 in t.shape:
+                    self.bytes = max(self.bytes, t.untyped_storage().nbytes())
+            return out
+
+    def largest(n_frames: int, chunk_frames: int) -> int:
+        seed = int.from_bytes(os.urandom(3), "little")  # nothing cached: the metrics run
+        cfg = _compose([*FAST, "viz=none", f"motion.n_frames={n_frames}", f"motion.seed={seed}", f"chunk_frames={chunk_frames}"])
+        with Largest() as mode:
+            run(cfg, tmp_path / f"{n_frames}_{chunk_frames}")
+        return mode.bytes
+
+    drape = 43 * 2796 * 3 * 4  # bytes: the 40 + 3 frames of the float32 drape
+    short, long = largest(10, 4), largest(40, 4)
+    assert short == long < drape / 2
+    assert largest(40, 1000) >= drape  # held whole

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import torch
 
-from drapebench.results import read_prediction, write_prediction
+from drapebench.results import StoredFrames, prediction_writer, read_prediction, write_prediction
 
 
 def test_prediction_round_trip(tmp_path):
@@ -30,6 +30,39 @@ def test_failed_write_keeps_the_old_file(tmp_path):
         assert f["vertices"][()].max() == 0  # the earlier, complete file
     assert [p.name for p in tmp_path.iterdir()] == ["p.h5"]
 
+
+
+def test_a_prediction_written_in_chunks_is_the_whole_one_and_reads_back_a_chunk_at_a_time(tmp_path):
+    x, faces = torch.rand(10, 7, 3), torch.tensor([[0, 1, 2]])
+    write_prediction(tmp_path / "whole.h5", x, faces, method="lbs")
+    with prediction_writer(tmp_path / "chunks.h5", 10, faces, 7, method="lbs") as writer:
+        for a in range(0, 10, 3):
+            writer.append(x[a : a + 3])
+        assert not (tmp_path / "chunks.h5").exists()  # a temporary file until the block ends
+    (v, f, attrs), (v_whole, f_whole, attrs_whole) = read_prediction(tmp_path / "chunks.h5"), read_prediction(tmp_path / "whole.h5")
+    assert np.array_equal(v, v_whole) and np.array_equal(f, f_whole) and attrs == attrs_whole
+    stored = StoredFrames(tmp_path / "chunks.h5", writer.digest)
+    assert stored.shape == x.shape and len(stored) == 10 and stored.dtype == torch.float32
+    assert torch.equal(stored[4:9], x[4:9]) and torch.equal(stored[8:20], x[8:])
+    other = tmp_path / "other.h5"
+    with prediction_writer(other, 10, faces, 7) as again:
+        again.append(x.clone())
+    y = x.clone()
+    y[9, 6, 2] += 1e-3
+    with prediction_writer(other, 10, faces, 7) as changed:
+        changed.append(y)
+    assert again.digest == writer.digest != changed.digest  # the frames' content, however they were written
+
+
+def test_a_prediction_missing_frames_is_not_kept(tmp_path):
+    path = tmp_path / "p.h5"
+    with pytest.raises(ValueError, match="8 of 10 frames were written"):
+        with prediction_writer(path, 10, torch.tensor([[0, 1, 2]]), 7) as writer:
+            writer.append(torch.zeros(8, 7, 3))
+    with pytest.raises(ValueError, match="do not fit"):
+        with prediction_writer(path, 10, torch.tensor([[0, 1, 2]]), 7) as writer:
+            writer.append(torch.zeros(11, 7, 3))
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_report_does_not_import_the_pipeline():
@@ -77,6 +110,36 @@ def test_a_long_stage_logs_its_progress_with_an_estimate_where_no_bar_is_drawn(m
         for _ in progress_module.progress(range(3), desc="ci"):
             time.sleep(0.03)
     assert not caplog.records
+
+
+def test_progress_lines_come_across_stages_so_no_set_up_between_them_goes_silent(monkeypatch, caplog):
+    """Where no bar is drawn: a new stage logs its first line as soon as LOG_EVERY_S has passed since the last line of
+    any stage, and a stage that ran that long logs its last line when it ends (a clock that the test moves)."""
+    import logging
+    from types import SimpleNamespace
+
+    import drapebench.progress as progress_module
+
+    clock = SimpleNamespace(t=100.0)
+    monkeypatch.delenv("CI", raising=False)
+    monkeypatch.delenv("DRAPEBENCH_PROGRESS", raising=False)
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: False)
+    monkeypatch.setattr(progress_module, "time", SimpleNamespace(monotonic=lambda: clock.t))
+    monkeypatch.setattr(progress_module._LogLines, "last", 100.0)
+    with caplog.at_level(logging.INFO, logger="drapebench"):
+        drape = progress_module.progress(total=4, desc="drape", unit="chunk")  # 0 s since the last line: silent
+        for dt in (6.0, 1.0):
+            clock.t += dt
+            drape.update(1)
+            drape.refresh()
+        clock.t += 1.0
+        drape.close()  # ran 8 s: its last line
+        clock.t += 6.0  # set-up between the stages
+        metrics = progress_module.progress(total=3, desc="metrics", unit="frames")  # 6 s since the last line: at once
+        clock.t += 1.0
+        metrics.update(3)
+        metrics.close()  # 1 s since the last line and a short stage: silent
+    assert [r.getMessage().split(" (")[0] for r in caplog.records] == ["drape: 1/4 chunk", "drape: 2/4 chunk", "metrics: 0/3 frames"]
 
 
 def test_prediction_h5_keeps_a_float64_drape_float64(tmp_path):

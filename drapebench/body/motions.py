@@ -34,12 +34,14 @@ from drapebench.body.lbs import lbs
 from drapebench.body.limits import JOINT_LIMITS
 from drapebench.body.random_motion import random_motion
 from drapebench.keys import check_known
+from drapebench.progress import progress
 
 NAMED_MOTIONS = ("walk", "run", "jump", "arm_raise", "squat", "twist", "kick", "dance", "static", "stress")
 MOTIONS = (*NAMED_MOTIONS, "random")  # random: drapebench.body.random_motion
 MOTION_VERSION = 3  # bump when generated poses change (part of dataset content hashes)
 SOFT_MARGIN = 0.05  # fraction of a joint range at either end where soft_limit bends towards the limit
 GROUND_SOFTNESS = 0.01  # metres; soft-min temperature of the foot-contact height
+GROUND_CHUNK = 4096  # frames grounded at once by ground_offset
 J = {name: i for i, name in enumerate(JOINT_NAMES)}
 X, Y, Z = 0, 1, 2
 GRAVITY = 9.81  # m/s^2, for the ballistic flight of jumps
@@ -345,7 +347,10 @@ def ground_offset(pose: np.ndarray) -> np.ndarray:
     0 (to rounding) for the rest pose.
     """
     body, sole, weights = _canonical_feet()
-    with torch.no_grad():
-        transforms = body.forward(None, torch.as_tensor(pose, dtype=torch.float64, device=body.device), skin=False).transforms
-        z = lbs(sole, weights, transforms)[..., 2]
-    return (_soft_floor(sole[None, :, 2]) - _soft_floor(z)).numpy()
+    offset = np.empty(len(pose))
+    for a in progress(range(0, len(pose), GROUND_CHUNK), desc="grounding the motion", unit="chunk"):
+        with torch.no_grad():  # GROUND_CHUNK frames at a time: no float64 transforms of a whole long motion
+            transforms = body.forward(None, torch.as_tensor(pose[a : a + GROUND_CHUNK], dtype=torch.float64, device=body.device), skin=False).transforms
+            z = lbs(sole, weights, transforms)[..., 2]
+        offset[a : a + GROUND_CHUNK] = (_soft_floor(sole[None, :, 2]) - _soft_floor(z)).numpy()
+    return offset

@@ -164,6 +164,14 @@ class BodySequence:
                 ).transforms  # fmt: skip
         return self._cache[key]
 
+    def frame_transforms(self, body: BodyModel, start: int, stop: int) -> torch.Tensor:
+        """Skinning transforms (stop-start, J, 4, 4) of frames [start, stop): slices of the whole sequence's when this
+        sequence holds them (:meth:`transforms`, :meth:`body_output`), else computed for those frames only and not
+        cached (memory bounded by the chunk on long sequences)."""
+        if _key("out", body) in self._cache or _key("transforms", body) in self._cache:
+            return self.transforms(body)[start:stop]
+        return self.slice(start, stop).transforms(body)
+
     def slice(self, start: int, stop: int | None = None) -> BodySequence:
         """Frames [start, stop) as a new sequence (the transition count is clipped to what remains)."""
         stop = self.n_frames if stop is None else stop

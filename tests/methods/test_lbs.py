@@ -31,3 +31,16 @@ def test_lbs_follows_the_body_rigidly(body_lowres):
     shifted = make_sequence("static", 1, transition=1)
     shifted.trans[:] = torch.tensor([0.1, -0.2, 0.3])
     assert torch.allclose(m.drape(g, shifted).vertices[0], g.vertices + shifted.trans[0], atol=1e-5)
+
+
+def test_lbs_drapes_a_chunk_at_a_time_what_it_drapes_whole(body_lowres):
+    g = make_garment("tshirt", body_lowres)
+    m = methods.get("lbs")({})
+    m.fit(TrainData(body=body_lowres, material=Material(), garment=g))
+    seq = make_sequence("walk", 20, seed=0, transition=3)
+    whole = m.drape(g, seq)
+    chunks = list(m.drape_chunks(g, seq, 5))
+    assert [len(c.vertices) for c in chunks] == [5, 5, 5, 5, 3]
+    assert torch.equal(torch.cat([c.vertices for c in chunks]), whole.vertices)
+    assert whole.timings_ms.keys() == chunks[0].timings_ms.keys() == {"weights", "body", "skinning"}
+    assert sum(c.timings_ms["weights"] for c in chunks) == chunks[0].timings_ms["weights"] > 0  # counted once
