@@ -188,7 +188,7 @@ def _evaluation(monkeypatch, body):
 
     calls = []
     monkeypatch.setattr(drapebench.metrics, "evaluate", lambda *a, **k: calls.append(1) or _fake_evaluate(*a, **k))
-    cfg = OmegaConf.create({"force": False, "eval": {"skip_transition": True, "energies": False}})
+    cfg = OmegaConf.create({"force": False, "chunk_frames": 64, "eval": {"skip_transition": True, "energies": False}})
     g = SimpleNamespace(kind="skirt", vertices=torch.zeros(3, 3), faces=torch.zeros(1, 3, dtype=torch.long))
     seq = SimpleNamespace(name="walk", betas=np.zeros(4), poses=np.zeros((2, 3)), trans=np.zeros((2, 3)), n_transition=0)
     pred = torch.ones(2, 3, 3)
