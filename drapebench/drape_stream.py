@@ -1,5 +1,5 @@
 """A run's drape streamed to ``prediction.h5`` as the method makes it, so that a long drape of a method that drapes
-frame by frame (lbs) is never held whole: the run scores it from the file a chunk at a time."""
+frame by frame is never held whole: the run scores it from the file a chunk at a time."""
 
 from __future__ import annotations
 

@@ -144,7 +144,7 @@ def _fill(columns: dict, cols: dict, at: int, n_rows: int) -> None:
     """Copy a chunk's metric columns ``cols`` ({name: (B,) tensor}) into rows [at, at + B) of ``columns`` ({name: (n_rows,)
     float64 array}, each made on first use). Arrays made once, not a small tensor kept per chunk: small long-lived
     allocations between a chunk's large temporaries fragment the heap, which then grows by about a chunk's worth of
-    temporaries per chunk (measured: 35 KB per frame of a long lbs drape)."""
+    temporaries per chunk (measured: 35 KB per frame of a long skinned drape)."""
     for k, v in cols.items():
         column = columns.setdefault(k, np.full(n_rows, np.nan))
         column[at : at + len(v)] = v.detach().cpu().double().numpy()

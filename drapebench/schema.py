@@ -213,7 +213,7 @@ class Config:
     on_failure: FailureMode = FailureMode.stop  # drapebench.errors.DrapeFailed: stop, or record and go on
     seed: int = 0
     threads: Optional[int] = None  # torch threads per job; None: the job's share of the CPU cores
-    chunk_frames: int = 64  # frames draped (by a method that streams: lbs), written to prediction.h5 and scored at once
+    chunk_frames: int = 64  # frames draped (by a method that streams), written to prediction.h5 and scored at once
     device: str = "cpu"
     dtype: Precision = Precision.float32  # float64: the whole run in double precision (stability checks)
     experiment_name: str = "default"
