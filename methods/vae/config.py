@@ -24,11 +24,11 @@ VAE_DEFAULTS = dict(
     laplacian=1.0,  # lambda_1 of Eq. 13 (Eq. 15, L1 of mesh Laplacians, mm)
     collision=1.0,  # lambda_2 (Eq. 16, mean hinge in mm over vertices)
     selfsup=True,  # the second (sampled latent) term of Eq. 16; vae_no_selfsup: False
-    kl=1.0e-3,  # lambda_3 (KL per sample, summed over latent dimensions)
-    kl_warmup=0.0,  # fraction of the VAE's steps over which lambda_3 ramps linearly from 0 (0: constant)
+    kl=3.0e-2,  # lambda_3 (KL per sample, summed over latent dimensions): training codes' per-dimension std about 1.5
+    kl_warmup=0.3,  # fraction of the VAE's steps over which lambda_3 ramps linearly from 0 (0: constant; without it 3e-2 collapses the posterior)
     logvar_init=None,  # initial bias of the log-variance head: posterior sigma starts at exp(-3) = 0.05 (None: sigma ~ 1)
     samples=8,  # latent samples per step for the self-supervised term
-    sample_scale="codes",  # where they are drawn: codes (the batch codes' mean and std: "the same distribution as the data") | prior (z ~ N(0, I)) | a number s (N(0, s^2 I))
+    sample_scale="prior",  # where they are drawn: prior (z ~ N(0, I), the paper) | codes (the batch codes' mean and std, a diagnostic) | a number s (N(0, s^2 I))
     steps=None,  # training steps; None: the budget's (conf/train and schedule below)
     schedule=dict(epochs=60, batch_size=32, lr=1.0e-3, lr_after=1.0e-4, lr_switch_epoch=45, ema_decay=None,
                   lr_decay_fraction=None, grad_clip=10.0, checkpoint_every=200),  # fmt: skip
