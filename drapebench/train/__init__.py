@@ -2,6 +2,6 @@
 
 from drapebench.train.checkpoint import load_state, save_state, write_losses
 from drapebench.train.schedule import scheduled_lr
-from drapebench.train.trainer import Objective, Step, TrainResult, train, train_config
+from drapebench.train.trainer import Objective, Step, TrainResult, train, train_config, write_logs
 
-__all__ = ["Objective", "Step", "TrainResult", "load_state", "save_state", "scheduled_lr", "train", "train_config", "write_losses"]
+__all__ = ["Objective", "Step", "TrainResult", "load_state", "save_state", "scheduled_lr", "train", "train_config", "write_logs", "write_losses"]

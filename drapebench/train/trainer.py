@@ -205,7 +205,7 @@ def train(objective: Objective, cfg: Mapping[str, Any] | TrainConf | None, log_d
                               "cuda_rng": torch.cuda.get_rng_state(device) if device.type == "cuda" else None,
                               "ema": ema, "best_loss": best_loss, "best": best, "evaluations": evaluations})  # fmt: skip
             if log_dir is not None:
-                _write_logs(Path(log_dir), history, evaluations)
+                write_logs(log_dir, history, evaluations)
         if timed_out:
             log.warning("%s: max_minutes (%g) reached at step %d of %d; keeping the state of lowest mean training loss "
                         "(%.4g); a time-cut run depends on machine speed (raise max_minutes or lower the steps for a "
@@ -218,7 +218,7 @@ def train(objective: Objective, cfg: Mapping[str, Any] | TrainConf | None, log_d
         if final is not None:  # the averaged (or best) weights are the model
             torch._foreach_copy_(params, final)
     if log_dir is not None:
-        _write_logs(Path(log_dir), history, evaluations)
+        write_logs(log_dir, history, evaluations)
     remove_state(path)
     return TrainResult(t_prev + time.perf_counter() - t0, step, history, stopped, resumed, evaluations)
 
@@ -234,7 +234,10 @@ def _grad_norm(params: list[torch.Tensor]) -> float:
     return torch.linalg.vector_norm(torch.stack([torch.linalg.vector_norm(g) for g in grads])).item() if grads else 0.0
 
 
-def _write_logs(log_dir: Path, history: list[dict], evaluations: list[dict]) -> None:
+def write_logs(log_dir: str | Path, history: list[dict], evaluations: list[dict]) -> None:
+    """``losses.csv`` (one row per step) and, with evaluations, ``evaluations.csv`` (one row per epoch) into ``log_dir``."""
+    log_dir = Path(log_dir)
+    log_dir.mkdir(parents=True, exist_ok=True)
     write_losses(log_dir / "losses.csv", history)
     if evaluations:
         write_losses(log_dir / "evaluations.csv", evaluations)

@@ -14,7 +14,7 @@ import time
 import torch
 
 from drapebench.cache import Cache, body_key, content_hash
-from drapebench.train import Objective, train, train_config
+from drapebench.train import Objective, train, train_config, write_logs
 from methods.base import DrapeResult, DrapingMethod, FitReport
 from methods.vae import losses
 from methods.vae.config import vae_params
@@ -25,6 +25,7 @@ from methods.vae.projection import Projection, project_sequences
 
 log = logging.getLogger("drapebench")
 PROJECTIONS = Cache("vae", 1)  # canonical projections of the reference drapes
+TRAINED_VAES = Cache("vae", 1)  # trained VAEs (state and training record) by settings, budget and data
 POSE_CHUNK = 4  # frames posed per garment_model call in drape(): 135 frames at once run 2x slower per frame (7.7 vs 3.6 ms, tshirt)
 POSE_SCHEDULE = dict(batch_size=256, lr=1.0e-3, lr_after=None, lr_switch_epoch=None, grad_clip=None, ema_decay=None,
                      lr_decay_fraction=0.3, checkpoint_every=500)  # fmt: skip
@@ -221,6 +222,14 @@ class VAEModel(DrapingMethod):
             return losses.vae_terms(self.vae, self.sdf, self.topology, b, v, eps, gen, kl_factor)
 
         key = content_hash(self.p["vae"], eps, budget, X, self.template, "vae")
+        path = TRAINED_VAES.path(key, X_val, prefix="vae", suffix=".pt")  # a trained VAE, shared by the variants that differ after it
+        hit = TRAINED_VAES.load(path, lambda q: torch.load(q, map_location="cpu", weights_only=False))
+        if hit is not None:
+            self.vae.load_state_dict(hit["state"])
+            log.info("vae: the trained VAE loaded from %s (its settings, budget and data are this run's)", path)
+            if log_dir is not None:
+                write_logs(f"{log_dir}/vae", hit["result"].history, hit["result"].evaluations)
+            return hit["result"]
         objective = Objective("vae", [{"params": list(self.vae.parameters()), "lr_factor": 1.0}], len(X),
                               lambda idx, at: X[torch.as_tensor(idx, device=X.device)], terms, key,
                               lambda: self._latent_evaluation(X, X_val))  # fmt: skip
@@ -229,6 +238,8 @@ class VAEModel(DrapingMethod):
             mu = self.vae.encode(X)[0]
             self.vae.code_mean.copy_(mu.mean(0))
             self.vae.code_std.copy_(mu.std(0))
+        state = {k: v.cpu() for k, v in self.vae.state_dict().items()}
+        TRAINED_VAES.store(path, lambda tmp: torch.save({"state": state, "result": res}, tmp))
         return res
 
     def _latent_evaluation(self, X: torch.Tensor, X_val: torch.Tensor) -> dict:

@@ -272,11 +272,18 @@ def test_a_tiny_fit_drapes_and_its_state_round_trips(body, tmp_path):
     assert hit["eps_c_canonical"] == 100 and hit["sampled_prior_pct"] == 100 and hit["sampled_codes_pct"] == 100
 
 
-def test_the_mean_code_control_decodes_the_training_codes_mean_at_every_frame(body):
+def test_the_mean_code_control_decodes_the_training_codes_mean_at_every_frame(body, tmp_path):
     garment, data, diffused, seqs = _tiny_scene(body)
     m = _tiny_model(body, diffused, SphereSDF(c=(5.0, 5.0, 5.0), r=0.1), {**TINY, "regressor": {**TINY["regressor"], "predict": "mean_code"}})
     report = m.fit(data, {"seed": 0})
     assert m.regressor is None and {h["stage"] for h in report.history} == {"vae"}
+    trained = _tiny_model(body, diffused, m.sdf)  # the variant with a regressor: the same VAE, loaded, not trained again
+    trained.fit(data, {"seed": 0, "log_dir": str(tmp_path)})
+    assert all(torch.equal(a, b) for a, b in zip(trained.vae.state_dict().values(), m.vae.state_dict().values()))
+    assert (tmp_path / "vae" / "losses.csv").exists() and trained.evaluations == m.evaluations
+    other_seed = _tiny_model(body, diffused, m.sdf)
+    other_seed.fit(data, {"seed": 1})
+    assert not torch.equal(other_seed.vae.state_dict()["mu.weight"], m.vae.state_dict()["mu.weight"])
     test = make_sequence("kick", 6, seed=9, transition=2)
     out = m.drape(garment, test)
     with torch.no_grad():
