@@ -31,8 +31,8 @@ VAE_DEFAULTS = dict(
     sample_scale="prior",  # where they are drawn: prior (z ~ N(0, I), the paper) | codes (the batch codes' mean and std, a diagnostic) | a number s (N(0, s^2 I))
     steps=None,  # training steps; None: the budget's (conf/train and schedule below)
     schedule=dict(epochs=60, batch_size=32, lr=1.0e-3, lr_after=1.0e-4, lr_switch_epoch=45, ema_decay=None,
-                  lr_decay_fraction=None, grad_clip=10.0, checkpoint_every=200),  # fmt: skip
-)
+                  lr_decay_fraction=None, grad_clip=10.0, checkpoint_every=200, max_minutes=40.0),  # fmt: skip
+)  # max_minutes: a guard above the 16 min the 1,920 steps of data=cpu's tshirt take on one loaded thread (train=cpu's 9.5 cut them at half)
 REGRESSOR_DEFAULTS = dict(
     pose="learned",  # learned (a 10-D pose descriptor, the paper's [52]) | rotations (the joints' axis-angles)
     pose_code=10,  # size of the learned pose descriptor
@@ -51,7 +51,7 @@ REGRESSOR_DEFAULTS = dict(
     velocity=1.0,  # rho_1 of Eq. 18
     acceleration=1.0,  # rho_2
     schedule=dict(epochs=150, batch_size=8, lr=1.0e-3, lr_after=1.0e-4, lr_switch_epoch=120, ema_decay=None,
-                  lr_decay_fraction=None, grad_clip=10.0, checkpoint_every=200),  # fmt: skip
+                  lr_decay_fraction=None, grad_clip=10.0, checkpoint_every=200, max_minutes=40.0),  # fmt: skip
 )
 METHOD_DEFAULTS = dict(
     diffused={},  # drapebench.body.diffused settings (N samples, spread, MLP sizes), see DIFFUSED_DEFAULTS
