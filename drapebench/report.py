@@ -579,18 +579,17 @@ def evaluation_plot(dirs, path: Path, columns=tuple(EVALUATION_LABELS), title: s
         raise FileNotFoundError(f"no evaluations.csv in the runs below {', '.join(map(str, dirs))} (only methods that evaluate per epoch write one)")
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     styles = ["-", "--", ":", "-."]
-    rows = []
+    cells: dict[str, dict] = {}  # method -> (quantity, "epoch k (%)") -> "mean ± sample std (n=seeds)"
     for i, (method, runs) in enumerate(curves.items()):
         ev = pd.concat(list(runs.values()))
         for j, col in enumerate(c for c in columns if c in ev):
             per_epoch = ev.groupby("epoch")[col]
-            x = np.asarray(per_epoch.mean().index) + 1
-            std = per_epoch.std(ddof=0)
-            cell = lambda e: f"{per_epoch.mean()[e]:.4f}" + (f" ± {std[e]:.4f} (n={len(runs)})" if len(runs) > 1 else "")  # noqa: E731
-            label = EVALUATION_LABELS.get(col, col)
-            rows.append({("", "method"): method, **{(label, f"epoch {e + 1} (%)"): cell(e) for e in per_epoch.mean().index},
-                         (label, "last epoch (%)"): cell(per_epoch.mean().index[-1])})  # fmt: skip
-            label = f"{method}: {EVALUATION_LABELS.get(col, col)}" + (f" ({len(runs)} seeds)" if len(runs) > 1 else "")
+            mean, std = per_epoch.mean(), per_epoch.std()
+            x = np.asarray(mean.index) + 1
+            text = [f"{m:.4f}" + (f" ± {s:.4f} (n={len(runs)})" if len(runs) > 1 else "") for m, s in zip(mean, std)]
+            quantity = EVALUATION_LABELS.get(col, col)
+            cells.setdefault(method, {}).update({**{(quantity, f"epoch {e} (%)"): t for e, t in zip(x, text)}, (quantity, "last epoch (%)"): text[-1]})
+            label = f"{method}: {quantity}" + (f" ({len(runs)} seeds)" if len(runs) > 1 else "")
             ax.plot(x, per_epoch.mean(), styles[j % len(styles)], color=f"C{i}", label=label)
             if len(runs) > 1:
                 ax.fill_between(x, per_epoch.min(), per_epoch.max(), color=f"C{i}", alpha=0.15, lw=0)
@@ -601,13 +600,11 @@ def evaluation_plot(dirs, path: Path, columns=tuple(EVALUATION_LABELS), title: s
     ax.grid(alpha=0.3)
     scenes = ", ".join(sorted({f"{r['garment']} {r.get('body', '')}".strip() for _, r in df.iterrows()})) if "garment" in df else "unknown"
     command = f"python -m drapebench.report {' '.join(map(str, dirs))} --evaluations"
-    wide = pd.DataFrame([{k: v for k, v in r.items() if k != ("", "method")} for r in rows],
-                        index=pd.Index([r[("", "method")] for r in rows], name="method"))
-    wide = wide.groupby(level=0, sort=False).first()  # one row per method, its quantities side by side
+    wide = pd.DataFrame.from_dict(cells, orient="index").rename_axis("method")
     wide.columns = pd.MultiIndex.from_tuples(wide.columns, names=["quantity", "metric"])
     write_csv(Path(path).with_suffix(".csv"), [provenance(df, command), f"Per-epoch evaluations (evaluations.csv) of the runs; "
                                                f"garment(s) {scenes}.", "Legend: % of garment vertices inside the canonical "
-                                               "body (lower) per training epoch, mean ± std over the training seeds (n)."], wide)  # fmt: skip
+                                               "body (lower) per training epoch, mean ± sample std over the training seeds (n)."], wide)  # fmt: skip
     return save_figure(fig, path)
 
 

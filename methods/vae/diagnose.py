@@ -88,7 +88,7 @@ def loss_terms(run_dir: Path, n_garments: int = 64) -> dict[str, tuple[float, st
     for name, value in terms.items():
         grads = torch.autograd.grad(value, weights, retain_graph=True, allow_unused=True)
         norm = float(torch.sqrt(sum(g.square().sum() for g in grads if g is not None)))
-        out[name] = (float(value), "nats" if name == "kl" else "mm", norm)
+        out[name] = (float(value.detach()), "nats" if name == "kl" else "mm", norm)
     return out
 
 

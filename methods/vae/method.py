@@ -24,8 +24,7 @@ from methods.vae.network import GarmentVAE, PoseDescriptor, Regressor
 from methods.vae.projection import Projection, project_sequences
 
 log = logging.getLogger("drapebench")
-PROJECTIONS = Cache("vae", 1)  # canonical projections of the reference drapes
-TRAINED_VAES = Cache("vae", 1)  # trained VAEs (state and training record) by settings, budget and data
+VAE_CACHE = Cache("vae", 1)  # canonical projections of the reference drapes ("projection_*") and trained VAEs ("vae_*")
 POSE_CHUNK = 4  # frames posed per garment_model call in drape(): 135 frames at once run 2x slower per frame (7.7 vs 3.6 ms, tshirt)
 POSE_SCHEDULE = dict(batch_size=256, lr=1.0e-3, lr_after=None, lr_switch_epoch=None, grad_clip=None, ema_decay=None,
                      lr_decay_fraction=0.3, checkpoint_every=500)  # fmt: skip
@@ -169,9 +168,9 @@ class VAEModel(DrapingMethod):
         """Canonical projections of the reference drapes (cached by content), sequences of one length at a time."""
         body, cfg = self.body, self.p["projection"]
         fields = self.settings_key()
-        path = PROJECTIONS.path(cfg, fields["diffused"], fields["sdf"], body_key(body), garment.vertices, garment.faces,
+        path = VAE_CACHE.path(cfg, fields["diffused"], fields["sdf"], body_key(body), garment.vertices, garment.faces,
                                 [(s.betas, s.poses, s.trans, s.fps) for s in seqs], drapes, prefix="projection", suffix=".pt")  # fmt: skip
-        hit = PROJECTIONS.load(path, lambda p: torch.load(p, map_location="cpu", weights_only=False))
+        hit = VAE_CACHE.load(path, lambda p: torch.load(p, map_location="cpu", weights_only=False))
         if hit is None:
             hit = [None] * len(seqs)
             for T in sorted({s.n_frames for s in seqs}):
@@ -184,7 +183,7 @@ class VAEModel(DrapingMethod):
                                       desc=f"vae projection ({len(idx)} sequences)")  # fmt: skip
                 for j, i in enumerate(idx):
                     hit[i] = Projection(p.X[j].cpu(), p.residual_mm[j].cpu(), p.colliding[j].cpu())
-            PROJECTIONS.store(path, lambda tmp: torch.save(hit, tmp))  # on the CPU: a cache any device reads
+            VAE_CACHE.store(path, lambda tmp: torch.save(hit, tmp))  # on the CPU: a cache any device reads
         lengths = {p.X.shape[0] for p in hit}
         if len(lengths) > 1:
             raise ValueError(f"vae: reference sequences of different lengths {sorted(lengths)}; use one n_frames in the data preset")
@@ -222,8 +221,9 @@ class VAEModel(DrapingMethod):
             return losses.vae_terms(self.vae, self.sdf, self.topology, b, v, eps, gen, kl_factor)
 
         key = content_hash(self.p["vae"], eps, budget, X, self.template, "vae")
-        path = TRAINED_VAES.path(key, X_val, prefix="vae", suffix=".pt")  # a trained VAE, shared by the variants that differ after it
-        hit = TRAINED_VAES.load(path, lambda q: torch.load(q, map_location="cpu", weights_only=False))
+        fields = self.settings_key()  # the collision terms' SDF is the body's, fitted with these settings
+        path = VAE_CACHE.path(key, X_val, fields["sdf"], body_key(self.body), prefix="vae", suffix=".pt")  # shared by the variants that differ after it
+        hit = VAE_CACHE.load(path, lambda q: torch.load(q, map_location="cpu", weights_only=False))
         if hit is not None:
             self.vae.load_state_dict(hit["state"])
             log.info("vae: the trained VAE loaded from %s (its settings, budget and data are this run's)", path)
@@ -239,7 +239,7 @@ class VAEModel(DrapingMethod):
             self.vae.code_mean.copy_(mu.mean(0))
             self.vae.code_std.copy_(mu.std(0))
         state = {k: v.cpu() for k, v in self.vae.state_dict().items()}
-        TRAINED_VAES.store(path, lambda tmp: torch.save({"state": state, "result": res}, tmp))
+        VAE_CACHE.store(path, lambda tmp: torch.save({"state": state, "result": res}, tmp))
         return res
 
     def _latent_evaluation(self, X: torch.Tensor, X_val: torch.Tensor) -> dict:
