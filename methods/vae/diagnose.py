@@ -9,7 +9,9 @@ could ask of this decoder); ``mean code``, the training codes' mean decoded and 
 regressor's control, run as ``method=vae_mean_code``); ``canonical``, the reference's canonical projection posed
 again (what the canonical space itself costs). ``code gap`` is the distance between the regressed and the oracle codes in units of the
 training codes' std per dimension (RMS over dimensions, mean over frames): a large gap with a small oracle error
-puts the error in the regressor.
+puts the error in the regressor. A second line gives each drape's strain, eps_e (%, the mean relative edge-length
+change against the template, frames after the transition, as the metrics compute it), beside the reference's own:
+where the regressed drape's strain comes from (the data, the canonical space, the decoder or the regressor).
 
 With ``--terms N``: Eq. 13's weighted terms on N projected training garments and each term's gradient norm over the
 VAE's weights (which term drives the decoder). With ``--retrain '<json of regressor keys>' --seeds 100,101``: the run's pose descriptor and regressor trained
@@ -24,6 +26,7 @@ from pathlib import Path
 
 import torch
 
+from drapebench.geometry.ops import edge_lengths
 from drapebench.trained_run import load_run
 from methods.vae.garment_model import pose_garments
 from methods.vae.method import POSE_CHUNK
@@ -36,23 +39,28 @@ def _posed(method, X: torch.Tensor, seq) -> torch.Tensor:
     return torch.cat([pose_garments(method.diffused, X[i : i + POSE_CHUNK], betas, A[i : i + POSE_CHUNK]) for i in range(0, len(X), POSE_CHUNK)])
 
 
-def diagnose(run_dir: Path) -> dict[str, float]:
-    """The numbers of the module docstring for the vae run in ``run_dir`` (its checkpoint must still be in the cache)."""
+def diagnose(run_dir: Path) -> dict[str, dict[str, float]]:
+    """The numbers of the module docstring for the vae run in ``run_dir`` (its checkpoint must still be in the cache):
+    {"error": {row: mm, "code gap": std}, "eps_e": {row: %, "reference": %}}."""
     run = load_run(run_dir)
     m, seq = run.method, run.seq
     reference = run.reference()
     if reference is None:
         raise ValueError(f"{run_dir}: the run has no reference drape (reference.solver is null)")
     start = int(seq.n_transition)
+    topo = run.garment.topology
     error = lambda x: float((x[start:] - reference[start:]).norm(dim=-1).mean() * 1e3)  # noqa: E731
+    strain = lambda x: float(((edge_lengths(x[start:], topo.edges) - topo.rest_edge_lengths).abs() / topo.rest_edge_lengths).mean() * 100)  # noqa: E731
     X = m._project(run.garment, [seq], [reference]).X[0]  # an optimisation per frame (cached by content)
     with torch.no_grad():
         oracle, _ = m.vae.encode(X)
         regressed = m.regressor(m._descriptor(seq)[None])[0][0]
         gap = ((regressed - oracle) / m.vae.code_std).pow(2).mean(-1).sqrt()[start:].mean()
         mean_code = m.vae.decode(m.vae.code_mean.expand(len(X), -1))
-        return {"regressed": error(m.drape(run.garment, seq).vertices), "oracle code": error(_posed(m, m.vae.decode(oracle), seq)),
-                "mean code": error(_posed(m, mean_code, seq)), "canonical": error(_posed(m, X, seq)), "code gap": float(gap)}  # fmt: skip
+        drapes = {"regressed": m.drape(run.garment, seq).vertices, "oracle code": _posed(m, m.vae.decode(oracle), seq),
+                  "mean code": _posed(m, mean_code, seq), "canonical": _posed(m, X, seq)}  # fmt: skip
+    return {"error": {**{k: error(x) for k, x in drapes.items()}, "code gap": float(gap)},
+            "eps_e": {**{k: strain(x) for k, x in drapes.items()}, "reference": strain(reference)}}
 
 
 def retrained_error(run_dir: Path, regressor: dict, seed: int) -> float:
@@ -110,9 +118,14 @@ def main(argv=None) -> None:
                 print(f"{run.name} | {seed} | {retrained_error(run, keys, seed):.2f}", flush=True)
         return
     print("run | regressed (mm) | oracle code (mm) | mean code (mm) | canonical (mm) | code gap (std)")
-    for run in args.runs:
-        d = diagnose(run)
-        print(f"{run.name} | {d['regressed']:.2f} | {d['oracle code']:.2f} | {d['mean code']:.2f} | {d['canonical']:.2f} | {d['code gap']:.2f}")
+    results = {run: diagnose(run) for run in args.runs}
+    for run, d in results.items():
+        e = d["error"]
+        print(f"{run.name} | {e['regressed']:.2f} | {e['oracle code']:.2f} | {e['mean code']:.2f} | {e['canonical']:.2f} | {e['code gap']:.2f}")
+    print("run | eps_e (%): regressed | oracle code | mean code | canonical | reference")
+    for run, d in results.items():
+        s = d["eps_e"]
+        print(f"{run.name} | {s['regressed']:.2f} | {s['oracle code']:.2f} | {s['mean code']:.2f} | {s['canonical']:.2f} | {s['reference']:.2f}")
     if args.terms:
         for run in args.runs:
             print(f"{run.name}: Eq. 13's terms on {args.terms} training garments (value, norm of its gradient over the VAE's weights)")
