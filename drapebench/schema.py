@@ -1,6 +1,6 @@
 """Structured-config schema of ``conf/``: typos and wrong types fail when Hydra composes the config, and
 keys added with ``+`` that nothing reads fail in :func:`check_keys` before a run starts. The nodes of the domain's
-own records (``material``, ``reference``) are made from their dataclasses (:func:`node`), not copied."""
+own records (``material``, ``reference``, ``data``) are made from their dataclasses (:func:`node`), not copied."""
 
 from __future__ import annotations
 
@@ -15,6 +15,7 @@ from typing import Any, Dict, List, Optional
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING
 
+from drapebench.data.reference_spec import ReferenceSetSpec
 from drapebench.keys import check_known
 from drapebench.physics.material import Material
 from drapebench.reference.settings import SimSettings
@@ -105,32 +106,7 @@ def _config_type(hint) -> Any:
 
 MaterialConf = node(Material, "MaterialConf")
 ReferenceConf = node(SimSettings, "ReferenceConf", optional=True)  # None: conf/reference/<solver>.yaml's value
-
-
-@dataclass
-class DataConf:
-    """Reference training data of supervised methods: the fields of drapebench.data.reference_set.ReferenceSetSpec,
-    spelled out because that module imports torch and composing a config must not (a bad override fails at once);
-    tests/test_keys.py holds the two field for field."""
-
-    name: str = "cpu"  # preset name (conf/data/<name>.yaml)
-    motions: List[str] = field(default_factory=lambda: ["random"])  # named motions and/or random
-    per_motion: int = 1
-    n_frames: int = 45
-    seed: int = 40000
-    fps: float = 30.0
-    transition: int = 15
-    beta_sigma: float = 1.0
-    beta_clip: float = 2.0
-    n_shape_betas: int = 4
-    params: Dict[str, Any] = field(default_factory=dict)  # per-motion parameters
-    solver: str = "vbd"
-    settings: Dict[str, Any] = field(default_factory=dict)  # overrides of conf/reference/<solver>.yaml
-    body: Optional[str] = None  # collider body; None: the run's body
-    n_jobs: int = 1
-    replace_failed: int = 0  # replacement draws per failed sequence
-    allow_held_out: bool = False  # kick and stress are test motions
-
+DataConf = node(ReferenceSetSpec, "DataConf", name="cpu")  # reference training data of supervised methods (conf/data/<name>.yaml)
 
 
 @dataclass

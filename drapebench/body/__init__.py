@@ -1,29 +1,16 @@
 """Body model (SMPL-format LBS), the Anny bake, synthetic motions and body sequences, and the fields
-learned over the canonical body (diffused skinning, signed distance)."""
+learned over the canonical body (diffused skinning, signed distance); each export is imported at first use, so
+the constants of :mod:`drapebench.body.defaults` alone import no torch. (``lbs`` the function is
+``drapebench.body.lbs.lbs``: the submodule's name.)"""
 
-from drapebench.body.canonical_sdf import BODY_SDF_DEFAULTS, BodySDF, fit_body_sdf
-from drapebench.body.diffused import DIFFUSED_DEFAULTS, DiffusedBody, diffused_targets, fit_diffused_body
-from drapebench.body.lbs import axis_angle_to_matrix, inverse_lbs, lbs, matrix_to_axis_angle
-from drapebench.body.model import BodyModel, BodyOutput, load_body
-from drapebench.body.motions import MOTIONS
-from drapebench.body.sequence import BodySequence, make_sequence
+from drapebench.lazy import exports
 
-__all__ = [
-    "BODY_SDF_DEFAULTS",
-    "DIFFUSED_DEFAULTS",
-    "BodySDF",
-    "DiffusedBody",
-    "diffused_targets",
-    "fit_body_sdf",
-    "fit_diffused_body",
-    "MOTIONS",
-    "BodyModel",
-    "BodyOutput",
-    "BodySequence",
-    "axis_angle_to_matrix",
-    "inverse_lbs",
-    "lbs",
-    "load_body",
-    "make_sequence",
-    "matrix_to_axis_angle",
-]
+_EXPORTS = {
+    "BODY_SDF_DEFAULTS": "canonical_sdf", "BodySDF": "canonical_sdf", "fit_body_sdf": "canonical_sdf",
+    "DIFFUSED_DEFAULTS": "diffused", "DiffusedBody": "diffused", "diffused_targets": "diffused", "fit_diffused_body": "diffused",
+    "axis_angle_to_matrix": "lbs", "inverse_lbs": "lbs", "matrix_to_axis_angle": "lbs",
+    "BodyModel": "model", "BodyOutput": "model", "load_body": "model", "MOTIONS": "motions",
+    "BodySequence": "sequence", "make_sequence": "sequence",
+}  # fmt: skip
+__getattr__ = exports(__name__, _EXPORTS)
+__all__ = sorted(_EXPORTS)

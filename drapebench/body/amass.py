@@ -35,8 +35,9 @@ import numpy as np
 import torch
 from scipy.spatial.transform import Rotation
 
+from drapebench.body.defaults import DEFAULT_TRANSITION
 from drapebench.body.motion_file import check_axis_angle, check_root_units, motion_sequence, numeric_array, read_motion_file
-from drapebench.body.sequence import DEFAULT_TRANSITION, BodySequence
+from drapebench.body.sequence import BodySequence
 
 log = logging.getLogger("drapebench")
 

@@ -20,14 +20,14 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from drapebench.body.defaults import DEFAULT_TRANSITION, HELD_OUT_MOTIONS
 from drapebench.body.motions import MOTION_VERSION, MOTIONS, NAMED_MOTIONS, split_motions
-from drapebench.body.sequence import DEFAULT_TRANSITION, BodySequence, make_sequence
+from drapebench.body.sequence import BodySequence, make_sequence
 from drapebench.cache import Cache, content_hash, data_dir
 from drapebench.progress import progress
 
-# Split by motion kind: kick and stress never appear in training sets; static (a held pose) is in neither.
-# TRAIN_MOTIONS are the named training motions; the train_random* sets hold motion=random instead.
-HELD_OUT_MOTIONS = ("kick", "stress")
+# TRAIN_MOTIONS are the named training motions (the held-out ones and static left out); the train_random* sets hold
+# motion=random instead.
 TRAIN_MOTIONS = split_motions(held_out=(*HELD_OUT_MOTIONS, "static"), motions=NAMED_MOTIONS)[0]
 
 

@@ -20,9 +20,10 @@ import h5py
 import numpy as np
 import torch
 
+from drapebench.body.defaults import DEFAULT_TRANSITION
 from drapebench.body.model import read_pickle
 from drapebench.body.motions import smoothstep
-from drapebench.body.sequence import DEFAULT_TRANSITION, BodySequence
+from drapebench.body.sequence import BodySequence
 
 MAX_ROOT_SPEED = 15.0  # m/s; a faster root is taken for a translation in centimetres or millimetres
 MAX_ROOT_HEIGHT = 5.0  # body heights: a root whose median height (trans z) is beyond it is taken for another unit

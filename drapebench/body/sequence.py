@@ -11,12 +11,12 @@ from pathlib import Path
 import h5py
 import torch
 
+from drapebench.body.defaults import DEFAULT_TRANSITION
 from drapebench.body.model import BodyModel, BodyOutput
 from drapebench.body.motions import generate
 from drapebench.cache import atomic_write
 from drapebench.geometry.ops import vertex_normals
 
-DEFAULT_TRANSITION = 15  # frames (0.5 s at 30 fps) from the rest pose into the motion
 LOCAL_REUSE = 2.0  # m: root translation up to which posed_frames(local=True) reuses the cached world geometry
 #                    (world coordinates under 4 m: float32 rounds them as finely as the body's own scale)
 

@@ -1,9 +1,11 @@
-"""Typed training data: garments x body sequences x (optional) reference drapes, lazy h5, windows, splits."""
+"""Typed training data: garments x body sequences x (optional) reference drapes, lazy h5, windows, splits (each
+export imported at first use: :mod:`drapebench.data.reference_spec` alone imports no torch)."""
 
-from drapebench.data.references import References, read_drape
-from drapebench.data.sequences import H5Sequences
-from drapebench.data.splits import Split, check_held_out, split_sequences
-from drapebench.data.train_data import TrainData
-from drapebench.data.windows import Windows
+from drapebench.lazy import exports
 
-__all__ = ["H5Sequences", "References", "Split", "TrainData", "Windows", "check_held_out", "read_drape", "split_sequences"]
+_EXPORTS = {
+    "References": "references", "read_drape": "references", "H5Sequences": "sequences", "Split": "splits",
+    "check_held_out": "splits", "split_sequences": "splits", "TrainData": "train_data", "Windows": "windows",
+}  # fmt: skip
+__getattr__ = exports(__name__, _EXPORTS)
+__all__ = sorted(_EXPORTS)

@@ -5,8 +5,9 @@ import pytest
 import scipy.sparse
 import torch
 
-from drapebench.body import BodyModel, lbs, load_body
+from drapebench.body import BodyModel, load_body
 from drapebench.body.bake import JOINT_NAMES, PARENTS
+from drapebench.body.lbs import lbs
 
 
 def _tiny_smpl_arrays(rng, V=40, J=4, S=3):
