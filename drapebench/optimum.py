@@ -17,8 +17,9 @@ from __future__ import annotations
 import logging
 import math
 import time
+import typing
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, Literal
 
 import torch
 
@@ -26,14 +27,19 @@ from drapebench.progress import progress
 
 log = logging.getLogger("drapebench")
 WindowLoss = Callable[[int, torch.Tensor], tuple[torch.Tensor, dict[str, torch.Tensor]]]
-SOLVERS = ("lbfgs", "adam")
-# a method's ``method.params.optimum`` (its solver settings; see :func:`minimise`)
-SOLVER_DEFAULTS = dict(
-    solver="lbfgs",  # SOLVERS: lbfgs | adam
-    iterations=50,  # per frame: L-BFGS iterations (each one or more loss evaluations) or Adam steps
-    lr=1.0,  # L-BFGS step (1: the quasi-Newton step) or Adam's rate (m per step)
-    history=20,  # L-BFGS correction pairs
-)
+
+
+@dataclass(frozen=True)
+class SolverSettings:
+    """A method's ``method.params.optimum``: the solver settings of :func:`minimise`."""
+
+    solver: Literal["lbfgs", "adam"] = "lbfgs"
+    iterations: int = 50  # per frame: L-BFGS iterations (each one or more loss evaluations) or Adam steps
+    lr: float = 1.0  # L-BFGS step (1: the quasi-Newton step) or Adam's rate (m per step)
+    history: int = 20  # L-BFGS correction pairs
+
+
+SOLVERS = typing.get_args(typing.get_type_hints(SolverSettings)["solver"])
 
 
 @dataclass

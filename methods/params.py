@@ -1,24 +1,54 @@
-"""Method parameters: a method's defaults updated by ``method.params``, with unknown keys and invalid
-choices rejected by name."""
+"""Method parameters, typed: a method declares its settings as one frozen dataclass (its sections, e.g. ``train``,
+nested dataclasses) and :func:`typed_params` builds it from ``method.params``, the one check of every method's keys.
+
+Given keys update the defaults: a nested section key by key, a mapping field (a dict default such as a ``schedule``)
+key by key as well. An unknown key, at any depth, is a ValueError naming it and the valid keys; a value outside a
+``Literal`` field's choices names the key and the choices. Values are kept as given (no conversion): the parameters
+hash into checkpoint keys as before. A field's ``metadata["keys"]`` lists the keys its mapping may hold."""
 
 from __future__ import annotations
 
-from typing import Any, Mapping
+import dataclasses
+import typing
+from typing import Any, Literal, Mapping
 
 from drapebench.keys import check_known
+from drapebench.schema import TrainConf
+
+TRAIN_KEYS = tuple(f.name for f in dataclasses.fields(TrainConf))  # what a method's ``schedule`` may set
 
 
-def method_params(method: str, cfg: Mapping[str, Any] | None, defaults: dict, nested: Mapping[str, dict] = (), choices: Mapping[str, tuple] = ()) -> dict:
-    """``defaults`` updated by ``cfg``; each key of ``nested`` (e.g. "train") is a sub-dict that updates its own
-    defaults. Raises ValueError naming an unknown key (and the valid ones) or a value outside ``choices``."""
+def typed_params(cls: type, cfg: Mapping[str, Any] | None, method: str, section: str = ""):
+    """An instance of the frozen dataclass ``cls`` with ``cfg`` (``method.params``, or one ``section`` of it, e.g.
+    "train") over its defaults, nested dataclass fields built the same way. Raises ValueError naming an unknown key
+    (and the valid ones) or a value outside a ``Literal``'s choices, worded "<method> [<section>] parameter ..."."""
     cfg = dict(cfg or {})
-    check_known(cfg, defaults, f"{method} parameter")
-    p = {**defaults, **cfg}
-    for key, sub_defaults in dict(nested).items():
-        sub = dict(cfg.get(key) or {})
-        check_known(sub, sub_defaults, f"{method} {key} parameter", f"(method.params.{key})")
-        p[key] = {**sub_defaults, **sub}
-    for key, allowed in dict(choices).items():
-        if p[key] not in allowed:
-            raise ValueError(f"{method} parameter {key} must be one of {', '.join(allowed)}, not {p[key]!r}")
-    return p
+    hints = typing.get_type_hints(cls)
+    what = f"{method} {section} parameter" if section else f"{method} parameter"
+    check_known(cfg, [f.name for f in dataclasses.fields(cls)], what, f"(method.params.{section})" if section else "")
+    values = {}
+    for f in dataclasses.fields(cls):
+        if f.name not in cfg:
+            continue
+        value, hint, path = cfg[f.name], hints[f.name], f"{section}.{f.name}" if section else f.name
+        if dataclasses.is_dataclass(hint):
+            value = typed_params(hint, value, method, path)
+        elif isinstance(value, Mapping) and f.default_factory is not dataclasses.MISSING:
+            check_known(value, f.metadata.get("keys", value), f"{method} {path} parameter", f"(method.params.{path})")
+            value = {**f.default_factory(), **value}
+        elif typing.get_origin(hint) is Literal and value not in typing.get_args(hint):
+            raise ValueError(f"{method} parameter {path} must be one of {', '.join(map(str, typing.get_args(hint)))}, not {value!r}")
+        values[f.name] = value
+    return cls(**values)
+
+
+def params_dict(cls: type, cfg: Mapping[str, Any] | None, method: str) -> dict:
+    """:func:`typed_params` as the nested dict the methods read (``dataclasses.asdict``: sections as dicts, tuples
+    kept as tuples, the field order as declared)."""
+    return dataclasses.asdict(typed_params(cls, cfg, method))
+
+
+def schedule(**defaults):
+    """A ``schedule`` field: values of the training budget (``conf/train``, :class:`drapebench.schema.TrainConf`'s
+    keys) that a method sets otherwise, ``defaults`` unless ``method.params`` changes some."""
+    return dataclasses.field(default_factory=lambda: dict(defaults), metadata={"keys": TRAIN_KEYS})

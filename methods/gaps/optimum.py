@@ -21,7 +21,7 @@ log = logging.getLogger("drapebench")
 class GapsOptimum(GAPS):
     """GAPS's loss minimised per frame from its untrained skinning (network output zero). ``cfg``: GAPS's
     parameters (the loss and the skinning) plus ``optimum``, the solver settings
-    (:data:`methods.gaps.config.OPTIMUM_DEFAULTS`)."""
+    (:class:`methods.gaps.config.GapsOptimumSettings`)."""
 
     name = "gaps_optimum"
     displaced_from = ("start",)  # the optimum's move from the untrained skinning

@@ -26,7 +26,7 @@ HALF_SPACE_START = 0.1  # a at the start of the half-space optimum: a^2 x magnit
 
 class GensimOptimum(GenSim):
     """GenSim's loss minimised per frame from its ARAP stage. ``cfg``: GenSim's parameters (the loss, the ARAP
-    stage, mu_fabric / sigma_fabric) plus ``optimum``, the solver settings (:data:`drapebench.optimum.SOLVER_DEFAULTS`)."""
+    stage, mu_fabric / sigma_fabric) plus ``optimum``, the solver settings (:class:`methods.gensim.config.GensimOptimumSettings`)."""
 
     name = "gensim_optimum"
 

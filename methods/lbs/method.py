@@ -5,6 +5,7 @@ sequence's joint transforms. The zero point every paper compares against."""
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from typing import Iterator
 
 import torch
@@ -13,7 +14,12 @@ from drapebench.body.lbs import LBS_CHUNK, lbs
 from drapebench.body.skinning import nearest_body_vertices, nearest_weights, transfer_shape
 from drapebench.progress import progress
 from methods.base import DrapeResult, DrapingMethod, FitReport
-from methods.params import method_params
+from methods.params import typed_params
+
+
+@dataclass(frozen=True)
+class NoParams:
+    """LBS's parameters: none."""
 
 
 class LBSMethod(DrapingMethod):
@@ -25,7 +31,8 @@ class LBSMethod(DrapingMethod):
 
     def __init__(self, cfg=None) -> None:
         """``cfg`` must be empty: LBS has no parameters (ValueError naming any key given)."""
-        super().__init__(method_params("lbs", cfg, {}))
+        typed_params(NoParams, cfg, "lbs")
+        super().__init__(cfg)
 
     def fit(self, data, train_cfg=None) -> FitReport:
         """Nothing to learn: binds the body and material."""

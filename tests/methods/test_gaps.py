@@ -1,5 +1,7 @@
 """GAPS on tiny data: learning, finiteness, recurrence, skinning weights, ablations."""
 
+from dataclasses import fields
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -11,7 +13,7 @@ from drapebench.garments import make_garment
 from drapebench.geometry.sdf import signed_distance
 from drapebench.physics import Material
 from drapebench.data import TrainData
-from methods.gaps.config import ADDED_KEYS, TRAIN_DEFAULTS
+from methods.gaps.config import ADDED_KEYS, GapsTrain
 from methods.gaps.skinning import rbf_weights, smoothed_weights
 
 QUICK = {"epochs": 1, "batch_size": 4, "log_every": 1, "checkpoint_every": 1000}
@@ -37,10 +39,11 @@ def _fit(scene, cfg=None, steps_epochs=1, seed=0, **train):
     """Train GAPS ``cfg`` on the scene; ``train`` holds budget keys (conf/train) and GAPS's own training keys."""
     body, g, seqs = scene
     cfg = dict(cfg or {})
-    cfg["train"] = {k: v for k, v in train.items() if k in TRAIN_DEFAULTS}
+    own = {f.name for f in fields(GapsTrain)}
+    cfg["train"] = {k: v for k, v in train.items() if k in own}
     m = methods.get("gaps")(cfg)
     data = TrainData(body=body, material=Material(), garment=g, load_train=lambda: seqs)
-    budget = {k: v for k, v in train.items() if k not in TRAIN_DEFAULTS}
+    budget = {k: v for k, v in train.items() if k not in own}
     rep = m.fit(data, {**QUICK, "seed": seed, "epochs": steps_epochs, **budget})
     return m, rep
 

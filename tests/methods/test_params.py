@@ -1,0 +1,53 @@
+"""methods.params.typed_params: the one check of every method's parameters (unknown keys and choices named at any
+depth), given keys over the defaults (sections and mappings key by key), values kept as given."""
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import pytest
+
+from methods.params import schedule, typed_params
+
+
+@dataclass(frozen=True)
+class Inner:
+    mode: Literal["a", "b"] = "a"
+    size: float = 1.5
+    schedule: dict = schedule(epochs=3, lr=1e-3)
+
+
+@dataclass(frozen=True)
+class Outer:
+    kind: Literal["x", "y"] = "x"
+    grid: tuple[float, ...] = (1.0, 2.0)
+    free: dict = field(default_factory=dict)
+    inner: Inner = field(default_factory=Inner)
+
+
+def test_given_keys_update_the_defaults_at_every_depth_and_keep_their_values():
+    p = typed_params(Outer, {"kind": "y", "free": {"any": 1}, "inner": {"size": 2, "schedule": {"lr": 0.5}}}, "toy")
+    assert p == Outer(kind="y", free={"any": 1}, inner=Inner(size=2, schedule={"epochs": 3, "lr": 0.5}))
+    assert type(p.inner.size) is int  # kept as given: the parameters hash into checkpoint keys as they were typed
+    assert typed_params(Outer, None, "toy") == Outer() and typed_params(Outer, {"inner": None}, "toy") == Outer()
+
+
+def test_unknown_keys_and_choices_are_named_with_their_path_and_the_valid_ones():
+    with pytest.raises(ValueError, match=r"unknown toy parameter\(s\) \['knid'\] \(did you mean 'kind'\?\); valid: \['free', 'grid', 'inner', 'kind'\]"):
+        typed_params(Outer, {"knid": "x"}, "toy")
+    with pytest.raises(ValueError, match=r"unknown toy inner parameter\(s\) \['sise'\] \(method.params.inner\) \(did you mean 'size'\?\)"):
+        typed_params(Outer, {"inner": {"sise": 1.0}}, "toy")
+    with pytest.raises(ValueError, match=r"unknown toy inner.schedule parameter\(s\) \['epoch'\] \(method.params.inner.schedule\) \(did you mean 'epochs'\?\); valid: \['batch_size'"):
+        typed_params(Outer, {"inner": {"schedule": {"epoch": 1}}}, "toy")  # a schedule holds the budget's (conf/train) keys
+    with pytest.raises(ValueError, match=r"^toy parameter kind must be one of x, y, not 'z'$"):
+        typed_params(Outer, {"kind": "z"}, "toy")
+    with pytest.raises(ValueError, match=r"^toy parameter inner.mode must be one of a, b, not 'c'$"):
+        typed_params(Outer, {"inner": {"mode": "c"}}, "toy")
+
+
+def test_a_partial_schedule_changes_only_the_keys_given():
+    """``+method.params.vae.schedule={epochs: 5}`` keeps the VAE's other schedule values (it replaced them all before)."""
+    from methods.vae.config import vae_params
+
+    default = vae_params(None)["vae"]["schedule"]
+    changed = vae_params({"vae": {"schedule": {"epochs": 5}}})["vae"]["schedule"]
+    assert changed == {**default, "epochs": 5} and default["batch_size"] == 32 and default["epochs"] == 60
