@@ -78,6 +78,15 @@ def _run_files(d: Path, name: str) -> list[Path]:
     return [d / name] if (d / name).exists() else sorted(d.rglob(name), key=_job_order)
 
 
+def join_registry(run_dir: Path) -> None:
+    """A method that ``run_dir``'s ``config.yaml`` names by import path joins the registry, so that its package's
+    declarations (its diagnostics' labels, its tables) are read (:func:`drapebench.plugins.known_impl`)."""
+    conf = Path(run_dir) / "config.yaml"
+    if conf.exists():
+        method = (yaml.safe_load(conf.read_text()) or {}).get("method") or {}
+        known_impl(str(method.get("name")), method.get("impl"))
+
+
 def collect(dirs) -> pd.DataFrame:
     """One row per ``metrics.json`` found below ``dirs`` (a run dir or a sweep dir, jobs in job order; a method its
     ``config.yaml`` names by import path joins the registry, :func:`drapebench.plugins.known_impl`), with its
@@ -89,10 +98,7 @@ def collect(dirs) -> pd.DataFrame:
         for f in _run_files(d, "metrics.json"):
             rec = json.loads(f.read_text())
             rec["run_dir"] = str(f.parent)
-            conf = f.parent / "config.yaml"
-            if conf.exists():  # a method outside the registry: its package's declarations join (drapebench.plugins)
-                method = (yaml.safe_load(conf.read_text()) or {}).get("method") or {}
-                known_impl(str(method.get("name")), method.get("impl"))
+            join_registry(f.parent)
             losses = f.parent / "losses.csv"
             converged = converged_seconds(losses, rec["train_s"]) if rec.get("train_s") and losses.exists() else None
             if converged is not None:
@@ -637,11 +643,11 @@ def write_table(dirs, name: str, out: Path, command: str | None = None, methods:
     (:mod:`drapebench.table_specs`; rows: ``methods`` in that order, or every method of the runs; only the runs of
     ``garments`` when given), and ``out``_bars.png for a spec with ``bars``; returns the paths. A table whose runs
     come from several commits says so in its title."""
+    df = only_garments(only_methods(collect(dirs), methods), garments)  # first: the runs' methods declare tables too
     ts = spec(name)
     if not ts.metrics:
         raise KeyError(f"table {name!r} is not made from runs by this command: {ts.command()}")
     metrics, group = list(ts.metrics), ts.group
-    df = only_garments(only_methods(collect(dirs), methods), garments)
     failed = collect_failures(dirs)
     if methods and not failed.empty:
         failed = failed[failed["method"].isin(methods)]
@@ -714,8 +720,9 @@ def write_summary(sweep_dir: Path) -> Path:
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description="Paper-style tables from run or sweep directories.")
     parser.add_argument("dirs", nargs="*", type=Path, help="run or sweep directories (searched for metrics.json)")
-    parser.add_argument("--table", default="baseline", choices=sorted(n for n, t in specs().items() if t.metrics),
-                        help="which table's spec (drapebench/table_specs.py, methods/<name>/tables.py): its metrics, column groups, notes and plots")
+    parser.add_argument("--table", default="baseline",
+                        help="which table's spec (drapebench/table_specs.py, methods/<name>/tables.py, or the tables.py of a method the "
+                        "runs name by import path): its metrics, column groups, notes and plots")  # fmt: skip
     parser.add_argument("--methods", type=lambda s: [m for m in s.split(",") if m],
                         help="comma-separated methods to show, in this order (default: every method of the runs)")
     parser.add_argument("--garments", type=lambda s: [g for g in s.split(",") if g],
@@ -743,6 +750,12 @@ def main(argv=None) -> None:
         for csv in sorted(c for d in args.dirs for c in Path(d).rglob("losses.csv")):
             print(loss_curve_plot(csv))
         return
+    for d in args.dirs:  # the runs' methods first: one outside the registry declares its tables in its package
+        for f in _run_files(d, "metrics.json"):
+            join_registry(f.parent)
+    tables = sorted(n for n, t in specs().items() if t.metrics)
+    if args.table not in tables:
+        parser.error(f"argument --table: invalid choice: {args.table!r} (choose from {', '.join(tables)})")
     for p in write_table(args.dirs, args.table, args.out or default_out(args.table), methods=args.methods, garments=args.garments):
         print(p)
 

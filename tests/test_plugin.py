@@ -48,11 +48,19 @@ from drapebench.metric_info import MetricInfo
 METRICS = {"toy_lift_mm": MetricInfo("lift (mm)", "mm", "neither", "how far the toy lifts the template")}
 '''
 
+TOY_TABLES = '''
+"""The toy's committed table: its lift and the edge strain beside the skinning zero point."""
+from drapebench.table_specs import Sweep, TableSpec
+
+TABLES = [TableSpec("toy_lift", "the toy's lift", ("toy_lift_mm", "eps_e"), sweeps=(Sweep("baseline", ("method=toy",)),))]
+'''
+
 READ_BACK = """
 from drapebench.report import collect
 from drapebench.results import legend, metric_label
 collect([{out!r}])
-print(metric_label("toy_lift_mm"), "|", legend(["toy_lift_mm"]))
+from drapebench.table_specs import spec
+print(metric_label("toy_lift_mm"), "|", legend(["toy_lift_mm"]), "|", spec("toy_lift").command())
 """
 
 
@@ -60,6 +68,7 @@ def test_a_method_from_a_folder_of_its_own_runs_through_run_py_and_the_report(tm
     (tmp_path / "toymethod").mkdir()
     (tmp_path / "toymethod" / "__init__.py").write_text(textwrap.dedent(TOY))
     (tmp_path / "toymethod" / "metrics.py").write_text(textwrap.dedent(TOY_METRICS))
+    (tmp_path / "toymethod" / "tables.py").write_text(textwrap.dedent(TOY_TABLES))
     (tmp_path / "conf" / "method").mkdir(parents=True)
     (tmp_path / "conf" / "method" / "toy.yaml").write_text("name: toy\nimpl: toymethod:Lifted\nparams: {lift: 0.01}\n")
     env = dict(os.environ, DRAPEBENCH_PROGRESS="0", HYDRA_FULL_ERROR="1", CI="1",
@@ -77,9 +86,15 @@ def test_a_method_from_a_folder_of_its_own_runs_through_run_py_and_the_report(tm
     assert p.returncode == 0, p.stderr[-3000:]
     rows = [line for line in (tmp_path / "table.md").read_text().splitlines() if line.startswith("| toy")]
     assert len(rows) == 1, (tmp_path / "table.md").read_text()
+    p = subprocess.run([sys.executable, "-m", "drapebench.report", str(out), "--table", "toy_lift", "--out", str(tmp_path / "toy")],
+                       cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)  # the table the toy's tables.py declares  # fmt: skip
+    assert p.returncode == 0, p.stderr[-3000:]
+    text = (tmp_path / "toy.md").read_text()
+    assert "lift (mm)" in text and "| toy" in text and "10" in text.split("| toy")[1].split("\n")[0], text
     p = subprocess.run([sys.executable, "-c", READ_BACK.format(out=str(out))], cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stderr[-3000:]
-    assert p.stdout.strip() == "lift (mm) | Legend: toy_lift_mm: how far the toy lifts the template (mm, neither). Definitions: docs/metrics.md."
+    assert p.stdout.strip() == ("lift (mm) | Legend: toy_lift_mm: how far the toy lifts the template (mm, neither). Definitions: docs/metrics.md."
+                                " | python -m drapebench.reproduce --tables toy_lift")
 
 
 def test_an_import_path_that_is_not_a_method_is_refused_naming_it():
