@@ -5,13 +5,16 @@ from __future__ import annotations
 import logging
 import os
 import sys
+import threading
 import time
+import weakref
 from typing import Iterable, TypeVar
 
 from tqdm.auto import tqdm
 
 T = TypeVar("T")
 LOG_EVERY_S = 5.0  # s: the least time between two logged progress lines (a run shorter than this logs none)
+HEARTBEAT_S = 1.0  # s: how often a logged stage checks that the log has not gone silent while one of its steps runs
 LOG_FORMAT = "{desc}: {n_fmt}/{total_fmt} {unit} ({percentage:.0f} %) in {elapsed}, about {remaining} left ({rate_fmt})"
 
 
@@ -50,15 +53,34 @@ class _LogLines:
 
 
 class _LoggedBar(tqdm):
-    """tqdm writing its lines to :class:`_LogLines`, which it tells when it closes."""
+    """tqdm writing its lines to :class:`_LogLines`, which it tells when it closes. While it is open, a thread logs its
+    line again (the same count, the time spent growing) whenever :data:`LOG_EVERY_S` has passed without a line, so a
+    slow step (a large chunk, a loaded machine) does not leave the log silent until it ends."""
 
     def __init__(self, *args, **kw) -> None:
         self.lines = _LogLines()
         super().__init__(*args, file=self.lines, mininterval=1.0, miniters=1, bar_format=LOG_FORMAT, **kw)
+        self.stopped = threading.Event()
+        threading.Thread(target=_heartbeat, args=(weakref.ref(self), self.stopped), name=f"progress {self.desc}", daemon=True).start()
 
     def close(self) -> None:
+        if hasattr(self, "stopped"):
+            self.stopped.set()
         self.lines.closing = True
         super().close()
+
+
+def _heartbeat(bar_ref: weakref.ref, stopped: threading.Event) -> None:
+    """Every :data:`HEARTBEAT_S` until ``stopped`` is set or the bar is gone: the bar's line, marked as a step still
+    running, when no stage has logged one for :data:`LOG_EVERY_S` and this bar has run that long."""
+    while not stopped.wait(HEARTBEAT_S):
+        bar = bar_ref()
+        if bar is None:
+            return
+        now = time.monotonic()
+        if now - _LogLines.last >= LOG_EVERY_S and now - bar.lines.start >= LOG_EVERY_S:
+            bar.lines.write(f"{bar} - a step still running")
+        del bar
 
 
 def progress(iterable: Iterable[T] | None = None, desc: str = "", total: int | None = None, unit: str = "it", **kw) -> tqdm:

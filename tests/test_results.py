@@ -142,6 +142,34 @@ def test_progress_lines_come_across_stages_so_no_set_up_between_them_goes_silent
     assert [r.getMessage().split(" (")[0] for r in caplog.records] == ["drape: 1/4 chunk", "drape: 2/4 chunk", "metrics: 0/3 frames"]
 
 
+def test_a_step_slower_than_the_log_interval_still_logs_lines_and_a_closed_stage_none(monkeypatch, caplog):
+    """Where no bar is drawn: a stage whose steps each take longer than LOG_EVERY_S (a large chunk on a loaded
+    machine) logs its line again while a step runs, so the log never goes silent longer than about LOG_EVERY_S;
+    once the stage is closed, its thread logs nothing more."""
+    import logging
+    import time
+
+    import drapebench.progress as progress_module
+
+    monkeypatch.delenv("CI", raising=False)
+    monkeypatch.delenv("DRAPEBENCH_PROGRESS", raising=False)
+    monkeypatch.setattr(progress_module, "LOG_EVERY_S", 0.2)
+    monkeypatch.setattr(progress_module, "HEARTBEAT_S", 0.02)
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: False)
+    with caplog.at_level(logging.INFO, logger="drapebench"):
+        bar = progress_module.progress(total=2, desc="metrics", unit="frames")
+        for _ in range(2):
+            time.sleep(0.9)  # one slow chunk
+            bar.update(1)
+        bar.close()
+        n_closed = len(caplog.records)
+        time.sleep(0.5)
+    times = [r.created for r in caplog.records]
+    assert any(r.getMessage().endswith("a step still running") and r.getMessage().startswith("metrics: 0/2") for r in caplog.records)
+    assert max(b - a for a, b in zip(times, times[1:])) < 0.5  # s: without the thread, 0.9 between the updates' lines
+    assert len(caplog.records) == n_closed  # nothing after the stage closed
+
+
 def test_prediction_h5_keeps_a_float64_drape_float64(tmp_path):
     far = torch.full((3, 4, 3), 30000.0, dtype=torch.float64) + torch.rand(3, 4, 3, dtype=torch.float64) * 1e-3
     write_prediction(tmp_path / "p64.h5", far, torch.tensor([[0, 1, 2]]))
