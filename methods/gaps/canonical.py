@@ -27,6 +27,7 @@ import torch
 from drapebench.cache import Cache, body_key, content_hash
 from drapebench.geometry.ops import vertex_normals
 from drapebench.optimum import minimise
+from methods.gaps.basis import KEYS as BASIS_KEYS
 
 log = logging.getLogger("drapebench")
 RELAXED = Cache("gaps_canonical", 3)  # bump when the solve or the stored arrays change
@@ -99,7 +100,7 @@ def relaxation(m) -> Relaxation:
     if len(grid) < 2 or not 1 <= K <= m.body.n_betas:
         raise ValueError(f"canonical: relaxed needs relax_grid of at least 2 values (got {grid}) and relax_components "
                          f"between 1 and the body's {m.body.n_betas} betas (got {K})")  # fmt: skip
-    key = (body_key(m.body), m.garment_key, {k: v for k, v in p.items() if k != "train"}, p["train"]["kext_ramp_epochs"],
+    key = (body_key(m.body), m.garment_key, {k: v for k, v in p.items() if k not in ("train", *BASIS_KEYS)}, p["train"]["kext_ramp_epochs"],
            p["train"]["window"], m.material)  # fmt: skip
     path = RELAXED.path(*key, prefix="relaxed", suffix=".pt")
 

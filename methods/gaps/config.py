@@ -59,12 +59,15 @@ class GapsParams:
     hidden: int = 256
     layers: int = 4
     zero_init_output: bool = True
+    output_basis: Literal["dense", "laplacian"] = "dense"  # dense: V x 3 displacements (the paper) | laplacian: basis_modes Laplacian eigenmodes of the template (beyond the paper; methods/gaps/basis.py)
+    basis_modes: int = 128  # output_basis: laplacian: the number K of lowest-frequency modes (the network outputs K x 3 coefficients)
     collision_postprocess: bool = False  # SNUG's push-out at inference; off unless a config asks for it
     train: GapsTrain = field(default_factory=GapsTrain)
 
 
 ADDED_KEYS = dict(canonical="template", relax_grid=(-2.0, 0.0, 2.0), relax_components=2, relax_iterations=200, relax_clearance=2e-3,
-                  relax_inextensibility_weight=None, bending_scale="rest", bending_blend="distance")  # keys newer than some checkpoints, at the behaviour those were trained with
+                  relax_inextensibility_weight=None, bending_scale="rest", bending_blend="distance",
+                  output_basis="dense", basis_modes=128)  # keys newer than some checkpoints, at the behaviour those were trained with
 
 
 @dataclass(frozen=True)

@@ -165,7 +165,7 @@ def trunk_state(m, seq) -> dict:
     vector, so the network's output hardly varies with the motion or the body shape."""
     with torch.no_grad():
         y = m.net.gru(m.sequence_inputs(seq))[0][0, int(seq.n_transition) :]
-        wy = y @ m.net.out.weight.T
+        wy = m.net.displacements(y)  # the output layer's W y (and its bias, constant over the frames)
     return {"mean |y|": float(y.abs().mean()), "saturated": float((y.abs() > SATURATED).to(y.dtype).mean()),
             "std over frames of y": float(y.std(0).mean()), "std over frames of W y (mm)": 1e3 * float(wy.std(0).mean())}  # fmt: skip
 

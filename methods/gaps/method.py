@@ -25,6 +25,7 @@ from drapebench.optimum import sequence_terms
 from drapebench.train import Objective, train, train_config
 from methods.base import DrapeResult, DrapingMethod, FitReport
 from methods.gaps import losses
+from methods.gaps.basis import KEYS as BASIS_KEYS, laplacian_basis
 from methods.gaps.canonical import RELAXED, relaxation
 from methods.gaps.config import ADDED_KEYS, gaps_params
 from methods.gaps.network import GapsNet
@@ -78,11 +79,18 @@ class GAPS(DrapingMethod):
         self.garment_betas = garment.betas[: body.n_betas].to(body.device, body.dtype)
         self.n_in = body.n_betas + 3 * body.n_joints + 3
         if self.net is None:
-            self.net = GapsNet(self.n_in, 3 * garment.n_vertices, p["hidden"], p["layers"], p["zero_init_output"]).to(body.device, body.dtype)
+            self.net = GapsNet(self.n_in, 3 * garment.n_vertices, p["hidden"], p["layers"], p["zero_init_output"], self._output_basis(garment)).to(body.device, body.dtype)
             self.input_mean = torch.zeros(self.n_in, device=body.device)
             self.input_std = torch.ones(self.n_in, device=body.device)
         self.garment_key = content_hash(garment.vertices, garment.faces)
         self.relaxed = relaxation(self).to(body.device) if p["canonical"] == "relaxed" else None
+
+    def _output_basis(self, garment) -> torch.Tensor | None:
+        """(V, K) the network's output basis per ``output_basis`` (laplacian: the template's ``basis_modes``
+        lowest Laplacian eigenmodes, :mod:`methods.gaps.basis`, in the body's dtype), None for dense (the paper)."""
+        if self.p["output_basis"] == "dense":
+            return None
+        return laplacian_basis(garment.vertices, garment.faces, self.p["basis_modes"]).vectors.to(self.body.dtype)
 
     # ------------------------------------------------------------------ forward model
     def _inputs(self, betas: torch.Tensor, poses: torch.Tensor, vel: torch.Tensor) -> torch.Tensor:
@@ -135,10 +143,13 @@ class GAPS(DrapingMethod):
         body_params = list(self.net.gru.parameters()) + ([self.weights] if self.weights.requires_grad else [])
         groups = [{"name": "trunk", "params": body_params, "lr_factor": 1.0},
                   {"name": "output", "params": list(self.net.out.parameters()), "lr_factor": tp["lr_output_factor"], "eps": tp["output_adam_eps"]}]  # fmt: skip
-        key = content_hash(self.p, budget, self.garment_key, dict(self.body.state_dict()), self.body.parents, data.material,
+        key = content_hash(self._model_key(), budget, self.garment_key, dict(self.body.state_dict()), self.body.parents, data.material,
                            [(s.betas, s.poses, s.trans, s.fps) for s in seqs], None if self.relaxed is None else self.relaxed.d)  # fmt: skip
         objective = Objective("gaps", groups, len(self._windows), self._batch, self._loss_terms, key)
         rounds = int(tp["output_smoothing"])
+        if rounds and self.net.basis is not None:
+            raise ValueError("gaps: method.params.train.output_smoothing smooths a dense output layer's gradient over the garment; "
+                             "with output_basis: laplacian the output is smooth already: set output_smoothing to 0")  # fmt: skip
         hooks = [w.register_hook(lambda g: self._smooth_over_garment(g, rounds)) for w in self.net.out.parameters()] if rounds else []
         try:
             res = train(objective, budget, log_dir=log_dir)
@@ -254,8 +265,8 @@ class GAPS(DrapingMethod):
         self._require_bound()
         if self.net is None:
             raise RuntimeError("gaps: not trained; call fit() or load_state_dict() first")
-        if self.net.out.out_features != 3 * garment.n_vertices:
-            raise ValueError(f"gaps: this model was trained for a {self.net.out.out_features // 3}-vertex garment, not {garment.n_vertices}")
+        if self.net.n_out != 3 * garment.n_vertices:
+            raise ValueError(f"gaps: this model was trained for a {self.net.n_out // 3}-vertex garment, not {garment.n_vertices}")
         t_setup = time.perf_counter()
         if getattr(self, "template", None) is None or content_hash(garment.vertices, garment.faces) != self.garment_key:
             self._setup(garment)  # per-garment constants (after load_state_dict); learned weights are kept
@@ -349,12 +360,21 @@ class GAPS(DrapingMethod):
             return {}
         return {"net": self.net.state_dict(), "weights": self.weights.detach().clone(), "input_mean": self.input_mean,
                 "input_std": self.input_std, "params": dict(self.p), "garment_key": self.garment_key,
-                "n_in": self.n_in, "n_out": self.net.out.out_features}  # fmt: skip
+                "n_in": self.n_in, "n_out": self.net.n_out}  # fmt: skip
 
     def settings_key(self) -> dict:
-        """The resolved parameters (code defaults included) and, with ``canonical: relaxed``, the relaxation's cache
-        version: a changed default or relaxation retrains instead of loading a checkpoint trained with the old one."""
-        return {**self.p, "relaxation": RELAXED.version} if self.p["canonical"] == "relaxed" else self.p
+        """The resolved parameters (code defaults included; :meth:`_model_key`) and, with ``canonical: relaxed``, the
+        relaxation's cache version: a changed default or relaxation retrains instead of loading a checkpoint trained
+        with the old one."""
+        p = self._model_key()
+        return {**p, "relaxation": RELAXED.version} if self.p["canonical"] == "relaxed" else p
+
+    def _model_key(self) -> dict:
+        """The parameters as a checkpoint's key holds them: with the dense output (the paper's), without the
+        output basis's keys, which it does not read, so that checkpoints trained before those keys still load."""
+        if self.p["output_basis"] != "dense":
+            return self.p
+        return {k: v for k, v in self.p.items() if k not in BASIS_KEYS}
 
     def load_state_dict(self, state) -> None:
         if not state:
@@ -364,7 +384,8 @@ class GAPS(DrapingMethod):
         if trained != model:
             raise ValueError(f"gaps checkpoint was trained with {trained}, not {model}")
         if self.net is None:
-            self.net = GapsNet(state["n_in"], state["n_out"], self.p["hidden"], self.p["layers"], self.p["zero_init_output"])
+            basis = None if self.p["output_basis"] == "dense" else torch.zeros(state["n_out"] // 3, self.p["basis_modes"])  # filled by the state
+            self.net = GapsNet(state["n_in"], state["n_out"], self.p["hidden"], self.p["layers"], self.p["zero_init_output"], basis)
         self.net.load_state_dict(state["net"])
         dtype = state["weights"].dtype if self.body is None else self.body.dtype  # a float32 model runs in a float64 scene
         device = state["weights"].device if self.body is None else self.body.device  # a checkpoint is read onto the CPU
