@@ -284,6 +284,12 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     torch.set_num_threads(job_threads(cfg))
     torch.manual_seed(int(cfg.seed))
     method_cls = method_class(cfg)  # fail fast on an unknown method
+    params = OmegaConf.to_container(cfg.method.params, resolve=True)
+    schedule = params.get("train", {}).get("schedule") if isinstance(params.get("train"), dict) else None
+    for key in command_line_train_keys() & set(schedule or {}):  # what the user typed wins over a method's own budget
+        log.info("train.%s from the command line replaces method.params.train.schedule.%s", key, key)
+        schedule.pop(key)
+    method = method_cls(params)  # and on a bad method.params key or value, before the scene and its reference are built
     stages = {}
     t = time.perf_counter()
     device = torch_device(cfg.device)  # a CUDA run on a machine without CUDA is refused here, naming the fix
@@ -301,12 +307,6 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     if reference is not None:
         stages["reference_s"] = time.perf_counter() - t
 
-    params = OmegaConf.to_container(cfg.method.params, resolve=True)
-    schedule = params.get("train", {}).get("schedule") if isinstance(params.get("train"), dict) else None
-    for key in command_line_train_keys() & set(schedule or {}):  # what the user typed wins over a method's own budget
-        log.info("train.%s from the command line replaces method.params.train.schedule.%s", key, key)
-        schedule.pop(key)
-    method = method_cls(params)
     train_cfg = OmegaConf.to_container(cfg.train, resolve=True)
 
     data = scene.train_data(method, run_body)

@@ -207,6 +207,20 @@ def test_second_run_reuses_the_evaluation_and_a_corrupt_cache_entry_is_rebuilt(t
     assert len(calls) == 2  # the rebuilt entry is valid again
 
 
+def test_a_bad_method_parameter_fails_before_the_scene_and_its_reference_are_built(tmp_path, monkeypatch):
+    import drapebench.experiment
+    from drapebench.experiment import run
+
+    def built(*args, **kwargs):
+        raise AssertionError("the scene was built before the method's parameters were checked")
+
+    monkeypatch.setattr(drapebench.experiment.Scene, "from_config", built)
+    with pytest.raises(ValueError, match=r"unknown gaps train parameter\(s\) \['windw'\] \(method.params.train\) \(did you mean 'window'\?\)"):
+        run(_compose(["method=gaps", "+method.params.train.windw=4", *FAST]), tmp_path / "run")
+    with pytest.raises(ValueError, match="gaps parameter bending must be one of blend, flat, template, not 'flt'"):
+        run(_compose(["method=gaps", "+method.params.bending=flt", *FAST]), tmp_path / "run2")
+
+
 def test_interrupted_run_leaves_no_complete_looking_file(tmp_path, monkeypatch):
     import drapebench.viz
     from drapebench.cache import atomic_write
