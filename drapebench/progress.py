@@ -59,7 +59,7 @@ class _LoggedBar(tqdm):
 
     def __init__(self, *args, **kw) -> None:
         self.lines = _LogLines()
-        super().__init__(*args, file=self.lines, mininterval=1.0, miniters=1, bar_format=LOG_FORMAT, **kw)
+        super().__init__(*args, file=self.lines, mininterval=min(1.0, LOG_EVERY_S / 5), miniters=1, bar_format=LOG_FORMAT, **kw)
         self.stopped = threading.Event()
         threading.Thread(target=_heartbeat, args=(weakref.ref(self), self.stopped), name=f"progress {self.desc}", daemon=True).start()
 
@@ -72,13 +72,16 @@ class _LoggedBar(tqdm):
 
 def _heartbeat(bar_ref: weakref.ref, stopped: threading.Event) -> None:
     """Every :data:`HEARTBEAT_S` until ``stopped`` is set or the bar is gone: the bar's line, marked as a step still
-    running, when no stage has logged one for :data:`LOG_EVERY_S` and this bar has run that long."""
+    running, when its count has not moved for :data:`LOG_EVERY_S` and no stage has logged a line for as long."""
+    seen_n, seen_t = None, time.monotonic()
     while not stopped.wait(HEARTBEAT_S):
         bar = bar_ref()
         if bar is None:
             return
         now = time.monotonic()
-        if now - _LogLines.last >= LOG_EVERY_S and now - bar.lines.start >= LOG_EVERY_S:
+        if bar.n != seen_n:
+            seen_n, seen_t = bar.n, now
+        elif now - seen_t >= LOG_EVERY_S and now - _LogLines.last >= LOG_EVERY_S:
             bar.lines.write(f"{bar} - a step still running")
         del bar
 
