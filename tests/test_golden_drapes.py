@@ -1,0 +1,48 @@
+"""Every method drapes the small scene of tests/golden_drapes.py as it did when tests/fixtures/golden_drapes.npz was
+made (the commit is recorded inside it): a guard for changes that are meant to leave the methods' output alone
+(refactors of the configuration, the pipeline, the structure). lbs, pbs, gaps, gaps_optimum, gensim, gensim_optimum and
+the VAE are built from the runs' own composed configs, shrunk (see tests/golden_drapes.py); the VAE with stand-in body
+fields, as fitting the real diffused body and SDF takes minutes.
+
+When a method's output is MEANT to change (a new default, a fixed bug), regenerate the file deliberately, from the
+repository root, and say why in the commit:
+
+    python -m tests.golden_drapes
+"""
+
+import numpy as np
+import pytest
+
+from tests.golden_drapes import GOLDEN, SHRUNK, drapes
+
+TOLERANCE_M = 1e-5  # float32 noise on a drape of about 1 m
+
+
+@pytest.fixture(scope="module")
+def golden():
+    return np.load(GOLDEN)
+
+
+@pytest.fixture(scope="module")
+def current():
+    return drapes()
+
+
+def test_the_file_holds_every_method_and_its_commit(golden):
+    assert set(golden.files) == {"commit", *SHRUNK}
+    assert len(str(golden["commit"])) >= 40
+
+
+@pytest.mark.parametrize("name", list(SHRUNK))
+def test_each_method_drapes_as_before(name, golden, current):
+    x, before = current[name], golden[name]
+    assert x.shape == before.shape and np.isfinite(x).all()
+    diff = float(np.abs(x - before).max())
+    assert diff < TOLERANCE_M, f"{name}'s drape moved by up to {diff * 1e3:.4f} mm since {golden['commit']} (meant? regenerate: python -m tests.golden_drapes)"
+
+
+def test_the_drapes_are_the_methods_own(golden):
+    """Each method's stored drape differs from the skinning's (lbs), so comparing it tests that method's code."""
+    for name in SHRUNK:
+        if name != "lbs":
+            assert np.abs(golden[name] - golden["lbs"]).max() > 1e-4, name
