@@ -59,7 +59,7 @@ class _LoggedBar(tqdm):
 
     def __init__(self, *args, **kw) -> None:
         self.lines = _LogLines()
-        super().__init__(*args, file=self.lines, mininterval=min(1.0, LOG_EVERY_S / 5), miniters=1, bar_format=LOG_FORMAT, **kw)
+        super().__init__(*args, file=self.lines, mininterval=1.0, miniters=1, bar_format=LOG_FORMAT, **kw)
         self.stopped = threading.Event()
         threading.Thread(target=_heartbeat, args=(weakref.ref(self), self.stopped), name=f"progress {self.desc}", daemon=True).start()
 

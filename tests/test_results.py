@@ -171,8 +171,11 @@ def test_a_step_slower_than_the_log_interval_still_logs_lines_and_a_closed_stage
     caplog.clear()
     monkeypatch.setattr(progress_module, "LOG_EVERY_S", 0.5)
     with caplog.at_level(logging.INFO, logger="drapebench"):
-        for _ in progress_module.progress(range(60), desc="fast", unit="frames"):
+        fast = progress_module.progress(total=60, desc="fast", unit="frames")
+        for _ in range(60):
             time.sleep(0.02)  # steps faster than the interval: the bar's own lines, none marked as a step still running
+            fast.update(1)
+        fast.close()
     assert caplog.records and not any("still running" in r.getMessage() for r in caplog.records), [r.getMessage() for r in caplog.records]
 
 
