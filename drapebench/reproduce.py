@@ -65,6 +65,8 @@ def expand(sweep: Sweep, quick: bool = False) -> list:
         parser = OverridesParser.create(config_loader=GlobalHydra.instance().config_loader())
         overrides = parser.parse_overrides([*params, *sweep.overrides, *(QUICK if quick else ())])
         jobs = BasicSweeper.split_arguments(overrides, None)[0]
+        if sweep.reference_garments:
+            jobs = [j for j in jobs if _garment(j) in sweep.reference_garments or not _needs_reference(sweep.experiment, j)]
     if quick:
         seen, kept = set(), []
         for job in jobs:
@@ -75,6 +77,20 @@ def expand(sweep: Sweep, quick: bool = False) -> list:
                 kept.append(job)
         jobs = kept
     return [tuple(j) for j in jobs]
+
+
+def _garment(job: list) -> str | None:
+    return next((o.split("=", 1)[1] for o in job if o.split("=", 1)[0].lstrip("+") == "garment"), None)
+
+
+def _needs_reference(experiment: str, job: list) -> bool:
+    """Whether the method of ``job`` (a run's overrides) trains on reference drapes (composed inside Hydra's context)."""
+    from hydra import compose
+
+    from drapebench.experiment import method_class
+
+    method = [o for o in job if o.split("=", 1)[0].lstrip("+") in ("method", "method.impl")]
+    return method_class(compose("config", overrides=[f"experiment={experiment}", *method])).needs_reference
 
 
 def _first(jobs: list, override: str) -> str:
@@ -184,7 +200,7 @@ def main(argv=None) -> int:
     parser.add_argument("--quick", action="store_true", help="every table's pipeline on a tiny scene, untrained, into outputs/reproduce_quick")
     parser.add_argument("--out", type=Path, help="where the tables go (default: reports/, or outputs/reproduce_quick/reports with --quick)")
     parser.add_argument("--runs", type=Path, help="where the runs go (default: outputs/reproduce, or outputs/reproduce_quick/runs)")
-    parser.add_argument("--dry-run", action="store_true", help="list the runs and whether each has finished, run nothing")
+    parser.add_argument("--dry-run", action="store_true", help="list the runs and whether each has finished, and the trainings the unfinished ones need per method; run nothing")
     args = parser.parse_args(argv)
     unknown = [t for t in args.tables if t not in tables]
     if unknown:
@@ -196,8 +212,14 @@ def main(argv=None) -> int:
     jobs = plan(names, root, args.quick)
     at = commit()
     if args.dry_run:
+        from drapebench.reproduce_cost import summary
+
         for j in jobs:
             print(f"{'done' if finished(j, at) else 'todo'}  {j.table}: {j.sweep.experiment} {' '.join(j.overrides)}")
+        todo = [j for j in jobs if not finished(j, at)]
+        print(f"\nthe {len(todo)} runs to do, per method, and the distinct trainings they need from a clean cache "
+              "(the time of each: the README's budget table):")
+        print("\n".join(summary(todo)))
         return 0
     failed = run_all(jobs, at)
     paths = write_tables([n for n in names if n in args.tables], root, out, args.quick)

@@ -69,6 +69,7 @@ class DrapingMethod(ABC):
     name: str = "base"
     generic: bool = False  # one model for any garment (True) vs one model per garment
     needs_reference: bool = False  # trains on physics-based reference drapes
+    learns: bool = False  # fit trains a model (with train.epochs > 0); False: fit only binds the body and material
     displaced_from: tuple[str, ...] = ()  # extras stages in the drape's space: the recording colours the drape by its distance from each
 
     def __init__(self, cfg: Mapping[str, Any] | None = None) -> None:

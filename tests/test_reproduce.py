@@ -2,14 +2,16 @@
 pipeline end to end, and resuming where a stopped command left off."""
 
 import re
+from fnmatch import fnmatch
 from pathlib import Path
 
 import pytest
 
 from drapebench.claims_catalogue import claims
-from drapebench.reproduce import expand, finished, main, plan
+from drapebench.reproduce import Job, expand, finished, main, plan
+from drapebench.reproduce_cost import summary, tally
 from drapebench.table_file import read_csv, verified_text
-from drapebench.table_specs import Sweep, specs
+from drapebench.table_specs import Sweep, specs, untrained
 
 ROOT = Path(__file__).resolve().parent.parent
 CLAIMS = claims()
@@ -26,9 +28,18 @@ def test_a_sweep_expands_as_hydra_sweeps_it_and_quick_keeps_every_row():
     assert len(one) == 3 and all("method=gaps" in j and "seed=1" in j for j in one)
 
 
-def test_a_glob_sweeps_every_method_config():
+def test_a_glob_sweeps_every_method_config_but_the_ablations_it_excludes():
     methods = {o.split("=")[1] for j in expand(Sweep("runtime_vs_error", ("garment=tshirt",)), quick=True) for o in j if o.startswith("method=")}
-    assert methods == {p.stem for p in (ROOT / "conf" / "method").glob("*.yaml")}
+    configs = {p.stem for p in (ROOT / "conf" / "method").glob("*.yaml")}
+    ablations = {m for m in configs if any(fnmatch(m, p) for p in ("*_no_*", "gensim_v*", "gaps_kext1"))}
+    assert ablations and methods == configs - ablations  # a newly registered method joins by itself
+
+
+def test_a_method_trained_on_reference_drapes_runs_only_on_the_sweeps_reference_garments():
+    jobs = expand(Sweep("runtime_vs_error", ("garment=tshirt,skirt", "method=vae,vae_mean_code,gaps", "motion.betas=[0.0]"),
+                        reference_garments=("tshirt",)))  # fmt: skip
+    assert sorted((j[0], j[2]) for j in jobs) == sorted([("garment=tshirt", "method=vae"), ("garment=tshirt", "method=vae_mean_code"),
+                                                       ("garment=tshirt", "method=gaps"), ("garment=skirt", "method=gaps")])  # fmt: skip
 
 
 def test_every_committed_table_has_one_spec_and_no_command_lives_elsewhere():
@@ -84,3 +95,21 @@ def test_every_sweep_of_every_table_composes():
     with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
         for experiment, *overrides in sorted(runs):
             compose("config", overrides=[f"experiment={experiment}", *overrides])
+
+
+def _jobs(sweep: Sweep) -> list:
+    return [Job("t", sweep, overrides, Path("unused")) for overrides in expand(sweep)]
+
+
+def test_the_cost_tally_counts_a_training_per_model_not_per_run():
+    """gaps_table3: 2 methods x 3 shapes x 3 seeds = 18 runs on one garment need 6 trainings (the shape is a test
+    input); the untrained rows need none; GenSim, one model for every garment, one per seed over 3 garments."""
+    counts = tally(_jobs(Sweep("gaps_table3", ("seed=0,1,2",))))
+    assert {m: (r["runs"], len(r["trainings"])) for m, r in counts.items()} == {"gaps": (9, 3), "gaps_no_inext": (9, 3)}
+    (before,) = untrained("gaps_table3", ("gaps",))
+    assert {m: len(r["trainings"]) for m, r in tally(_jobs(before)).items()} == {"gaps_untrained": 0}
+    pen = tally(_jobs(Sweep("gensim_pen", ("seed=0,1",))))
+    assert (pen["gensim"]["runs"], len(pen["gensim"]["trainings"])) == (6, 2)
+    assert (pen["gensim_arap"]["runs"], len(pen["gensim_arap"]["trainings"])) == (6, 0)  # the ARAP stage learns nothing
+    lines = summary(_jobs(Sweep("gaps_table3", ("seed=0,1,2",))))
+    assert lines[-1].split() == ["all", "18", "6"]

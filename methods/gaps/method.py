@@ -45,6 +45,7 @@ class GAPS(DrapingMethod):
     displaced_from = ("raw",)  # under collision_postprocess: the push-out's move
     generic = False
     needs_reference = False
+    learns = True
 
     def __init__(self, cfg=None):
         super().__init__(cfg)

@@ -24,6 +24,7 @@ class GapsOptimum(GAPS):
     (:class:`methods.gaps.config.GapsOptimumSettings`)."""
 
     name = "gaps_optimum"
+    learns = False  # solved per frame: nothing trained
     displaced_from = ("start",)  # the optimum's move from the untrained skinning
 
     def __init__(self, cfg=None):

@@ -93,6 +93,7 @@ class GenSim(DrapingMethod):
     displaced_from = ("arap",)  # the recording colours PEN's displacement (Fig. 11)
     generic = True
     needs_reference = False
+    learns = True
 
     def __init__(self, cfg=None):
         super().__init__(cfg)
@@ -103,6 +104,7 @@ class GenSim(DrapingMethod):
         self.net = None
         self._compiled = None
         self.fabric = None
+        self.learns = type(self).learns and self.p["stage"] != "arap"  # the ARAP stage alone has nothing to train
 
     # ------------------------------------------------------------------ the two stages
     def _new_net(self) -> PEN:

@@ -29,6 +29,7 @@ class GensimOptimum(GenSim):
     stage, mu_fabric / sigma_fabric) plus ``optimum``, the solver settings (:class:`methods.gensim.config.GensimOptimumSettings`)."""
 
     name = "gensim_optimum"
+    learns = False  # solved per frame: nothing trained
 
     def __init__(self, cfg=None):
         cfg = dict(cfg or {})

@@ -45,6 +45,7 @@ class VAEModel(DrapingMethod):
     name = "vae"
     generic = False
     needs_reference = True
+    learns = True
 
     def __init__(self, cfg=None):
         super().__init__(cfg)

@@ -1,0 +1,66 @@
+"""What regenerating tables costs, before anything runs (``python -m drapebench.reproduce --dry-run`` prints it):
+per method, its runs and the distinct trainings they need (each training's time: the README's budget table).
+
+A training is identified as a checkpoint is (``drapebench.experiment``): the method's config, the training budget and
+data, the body, the material, the seed, and the garment unless the method is generic (one model for any garment);
+a method that learns nothing (``learns`` False) or a run with ``train.epochs=0`` needs none. Which trainings are
+cached already is not known here (that needs each scene's content hash): the counts are what a clean cache costs.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+
+UNKEYED = ("motion", "dtype", "viz", "chunk_frames")  # override keys (prefixes) that no training depends on
+
+
+def training_identity(cfg, methods: dict | None = None) -> tuple | None:
+    """The identity of the training a composed run config ``cfg`` needs, or None when it trains nothing;
+    ``methods`` (method config -> method object) saves constructing a method per run."""
+    from omegaconf import OmegaConf
+
+    from drapebench.experiment import method_class
+
+    methods = {} if methods is None else methods
+    key = repr(OmegaConf.to_container(cfg.method, resolve=True))
+    if key not in methods:
+        methods[key] = method_class(cfg)(OmegaConf.to_container(cfg.method.params, resolve=True))
+    method = methods[key]
+    if not method.learns or cfg.train.epochs == 0:
+        return None
+    plain = lambda node: repr(OmegaConf.to_container(node, resolve=True))  # noqa: E731
+    return (cfg.method.name, plain(cfg.method), plain(cfg.train), plain(cfg.data) if method.needs_reference else "",
+            cfg.body.name, plain(cfg.material), int(cfg.seed), "" if method.generic else plain(cfg.garment))  # fmt: skip
+
+
+def tally(jobs: list) -> dict:
+    """Per method name (in the order the runs first name it): ``{"runs": n, "trainings": set of identities}``
+    over ``jobs`` (:class:`drapebench.reproduce.Job`), each composed as its run composes it."""
+    from hydra import compose, initialize_config_dir
+
+    from drapebench.cache import PROJECT_ROOT
+    from drapebench.schema import register
+
+    register()
+    out, methods = defaultdict(lambda: {"runs": 0, "trainings": set()}), {}
+    alike = defaultdict(int)  # runs differing only in what no checkpoint's key holds (the test motion, dtype) train alike
+    for job in jobs:
+        alike[(job.sweep.experiment, tuple(o for o in job.overrides if not o.lstrip("+").startswith(UNKEYED)))] += 1
+    with initialize_config_dir(config_dir=str(PROJECT_ROOT / "conf"), version_base="1.3"):
+        for (experiment, overrides), n in alike.items():
+            cfg = compose("config", overrides=[f"experiment={experiment}", *overrides])
+            row = out[cfg.method.name]
+            row["runs"] += n
+            identity = training_identity(cfg, methods)
+            if identity is not None:
+                row["trainings"].add(identity)
+    return dict(out)
+
+
+def summary(jobs: list) -> list:
+    """Lines: per method (that has runs) its runs and the distinct trainings they need, then the totals."""
+    counts = tally(jobs)
+    lines = [f"{'method':<24}{'runs':>6}{'trainings':>11}"]
+    lines += [f"{name:<24}{row['runs']:>6}{len(row['trainings']):>11}" for name, row in counts.items()]
+    lines.append(f"{'all':<24}{sum(r['runs'] for r in counts.values()):>6}{sum(len(r['trainings']) for r in counts.values()):>11}")
+    return lines
