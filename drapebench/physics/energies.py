@@ -174,25 +174,29 @@ def hinge_collision_energy(
     return _total(torch.relu(eps - d), per_element)
 
 
+_SYM_I, _SYM_J = (0, 1, 2, 0, 0, 1), (0, 1, 2, 1, 2, 2)  # a symmetric 3x3's six entries: xx, yy, zz, xy, xz, yz
+_SYM_FULL = (0, 3, 4, 3, 1, 5, 4, 5, 2)  # the row-major 3x3 from the six
+
+
+def _ring_moments(x: torch.Tensor, topo: Topology) -> torch.Tensor:
+    """The six entries (xx, yy, zz, xy, xz, yz) of each vertex's 1-ring covariance, (B, V, 6) m^2: the neighbours'
+    offsets from the vertex (small numbers: no cancellation against positions of about 1 m), their mean outer
+    product less the outer product of their mean (the covariance does not depend on the origin)."""
+    owner, ring = topo.ring_owner, topo.ring_idx
+    cnt = topo.ring_sizes.clamp_min(1).to(x.dtype)[:, None]
+    B, V = x.shape[:2]
+    i, j = (torch.tensor(k, device=x.device) for k in (_SYM_I, _SYM_J))
+    e = x.index_select(1, ring) - x.index_select(1, owner)  # (B, P, 3)
+    mean = x.new_zeros(B, V, 3).index_add(1, owner, e) / cnt
+    second = x.new_zeros(B, V, 6).index_add(1, owner, e.index_select(2, i) * e.index_select(2, j)) / cnt
+    return second - mean.index_select(2, i) * mean.index_select(2, j)
+
+
 def ring_covariance(x: torch.Tensor, topo: Topology) -> torch.Tensor:
     """Covariance of each vertex's 1-ring neighbours (centre excluded, mean-centred, / count): (B, V, 3, 3)."""
     x = _batch(x)
-    owner = topo.ring_owner
-    cnt = topo.ring_sizes.clamp_min(1).to(x.dtype)
-    xn = x[:, topo.ring_idx]
-    mean = torch.zeros_like(x).index_add(1, owner, xn) / cnt[:, None]
-    d = xn - mean[:, owner]
-    outer = (d[..., :, None] * d[..., None, :]).reshape(x.shape[0], -1, 9)
-    cov = torch.zeros(x.shape[0], x.shape[1], 9, dtype=x.dtype, device=x.device).index_add(1, owner, outer)
-    return (cov / cnt[:, None]).reshape(x.shape[0], x.shape[1], 3, 3)
-
-
-def _det3(m: torch.Tensor) -> torch.Tensor:
-    return (
-        m[..., 0, 0] * (m[..., 1, 1] * m[..., 2, 2] - m[..., 1, 2] * m[..., 2, 1])
-        - m[..., 0, 1] * (m[..., 1, 0] * m[..., 2, 2] - m[..., 1, 2] * m[..., 2, 0])
-        + m[..., 0, 2] * (m[..., 1, 0] * m[..., 2, 1] - m[..., 1, 1] * m[..., 2, 0])
-    )
+    m = _ring_moments(x, topo)
+    return m.index_select(2, torch.tensor(_SYM_FULL, device=x.device)).reshape(*x.shape[:2], 3, 3)
 
 
 def inextensibility_energy(
@@ -202,15 +206,19 @@ def inextensibility_energy(
 
     C_v is the current 1-ring covariance, sigma_j the template's eigenvalues
     (``Topology.rest_ring_eigvals``); ``k_ext`` is a scalar or (B, V) per-vertex factor (1 = inextensible;
-    their Eq. 16 raises it where the garment collides). The weight (2e8) is the caller's.
+    their Eq. 16 raises it where the garment collides). The weight (2e8) is the caller's. Each determinant is
+    C_v's characteristic polynomial at s = k_ext sigma_j: det C - s c_2 + s^2 tr C - s^3 (c_2 the sum of the
+    principal 2x2 minors).
     """
     x = _batch(x)
-    C = ring_covariance(x, topo)
+    xx, yy, zz, xy, xz, yz = _ring_moments(x, topo).unbind(-1)
+    trace = (xx + yy + zz)[..., None]
+    minors = (xx * yy - xy * xy + xx * zz - xz * xz + yy * zz - yz * yz)[..., None]
+    det = (xx * (yy * zz - yz * yz) - xy * (xy * zz - yz * xz) + xz * (xy * yz - yy * xz))[..., None]
     k = torch.as_tensor(k_ext, dtype=x.dtype, device=x.device)
     k = k[..., None] if k.dim() >= 1 else k
-    sig = k * topo.rest_ring_eigvals  # (B|1, V, 3)
-    eye = torch.eye(3, dtype=x.dtype, device=x.device)
-    dets = _det3(C[:, :, None] - sig[..., None, None] * eye)  # (B, V, 3)
+    s = k * topo.rest_ring_eigvals  # (B|1, V, 3)
+    dets = det - s * (minors - s * (trace - s))  # (B, V, 3)
     return _total(dets.abs().sum(-1), per_element)
 
 
