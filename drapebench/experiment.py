@@ -130,7 +130,9 @@ def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir
     """Train, or load a checkpoint whose hash (method config + the method's settings_key + training config + training data content + garment
     (not for a generic method) + the body it trains on (``method.trained_body``) + material) matches. ``log_dir`` (passed to ``fit`` as the train config's ``log_dir``
     entry, for live logs) gets the fit's ``losses.csv`` (per step) and, when the method evaluates per epoch,
-    ``evaluations.csv``, the same from a fresh fit or a loaded checkpoint."""
+    ``evaluations.csv``, the same from a fresh fit or a loaded checkpoint. Returns the training time (s), the
+    checkpoint's path and how its training stopped ("done"; "time": cut by ``train.max_minutes``, warned again on
+    every load); a method with nothing learned: its fit's time, None, None."""
     data_key = dataset_hash(train_cfg["dataset"]) if train_cfg.get("dataset") else None
     if method.needs_reference:  # trained on the reference set of the `data` preset
         data_key = OmegaConf.to_container(cfg.data, resolve=True)
@@ -144,15 +146,20 @@ def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir
         method.load_state_dict(state["method"])
         log.info("loaded checkpoint %s (trained in %.1f s)", path.name, state["train_s"])
         _write_fit_logs(log_dir, state.get("history", []), state.get("evaluations", []))
-        return state["train_s"], str(path)
+        stopped = state.get("stopped", "done")
+        if stopped == "time":
+            log.warning("checkpoint %s was cut by train.max_minutes before its budget's last step (%d steps done): its model "
+                        "depends on the speed of the machine that trained it; force=true retrains it", path.name, state.get("n_steps", 0))  # fmt: skip
+        return state["train_s"], str(path), stopped
     report = method.fit(data, train_cfg if log_dir is None else {**train_cfg, "log_dir": str(log_dir)})
     _write_fit_logs(log_dir, report.history, report.evaluations)
     state = method.state_dict()
     if not state:
-        return report.train_s, None
+        return report.train_s, None, None
     CHECKPOINTS.store(path, lambda tmp: torch.save({"method": state, "train_s": report.train_s, "history": report.history,
-                                                    "evaluations": report.evaluations}, tmp))  # fmt: skip
-    return report.train_s, str(path)
+                                                    "evaluations": report.evaluations, "stopped": report.stopped,
+                                                    "n_steps": report.n_steps}, tmp))  # fmt: skip
+    return report.train_s, str(path), report.stopped
 
 
 def _write_fit_logs(log_dir: Path | None, history: list[dict], evaluations: list[dict]) -> None:
@@ -311,7 +318,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
 
     data = scene.train_data(method, run_body)
     t = time.perf_counter()
-    train_s, ckpt = _checkpoint(method, cfg, garment, data, train_cfg, log_dir=out)
+    train_s, ckpt, train_stopped = _checkpoint(method, cfg, garment, data, train_cfg, log_dir=out)
     stages["fit_s"] = time.perf_counter() - t
     if ckpt is not None:
         warn_untrained_shape(seq.betas, train_cfg, OmegaConf.to_container(cfg.method.params, resolve=True), cfg.method.name)
@@ -337,6 +344,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
         "setup_s": result.timings_ms.get("setup", 0.0) / 1e3,
         **{f"ms_{k}": v / seq.n_frames for k, v in result.timings_ms.items() if k != "setup"},
         "seed": int(cfg.seed), "train_seed": int(cfg.train.seed), "device": str(cfg.device), "experiment": cfg.experiment_name, "checkpoint": ckpt, "commit": git_commit(),
+        **({"train_stopped": train_stopped} if train_stopped else {}),
     }  # fmt: skip
     if export != "none":
         from drapebench.export import Drape, export_drape

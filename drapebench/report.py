@@ -268,6 +268,20 @@ def seeds_note(df: pd.DataFrame, group: str | None) -> str:
     return line
 
 
+def time_cut_note(df: pd.DataFrame) -> str:
+    """A warning naming the runs whose model's training ``train.max_minutes`` cut before its budget's last step
+    (``train_stopped`` "time" in metrics.json): such a model depends on the speed of the machine that trained it
+    ("" when none was cut)."""
+    if "train_stopped" not in df:
+        return ""
+    cut = df[df["train_stopped"] == "time"]
+    if cut.empty:
+        return ""
+    runs = ", ".join(dict.fromkeys(f"{r['method']} {r['garment']} seed {r.get('seed', '?')}" for _, r in cut.iterrows()))
+    return (f"**Time-cut training**: {runs}: train.max_minutes stopped the training before its budget's last step, so "
+            "the model depends on the machine's speed (rerun on an idle machine, or with a larger max_minutes and force=true).")
+
+
 def commits_note(df: pd.DataFrame) -> str:
     """A warning naming each method's commits when the runs behind a table come from more than one commit
     ("" when they all come from one)."""
@@ -666,14 +680,14 @@ def write_table(dirs, name: str, out: Path, command: str | None = None, methods:
     if ts.pareto and speedups(df):
         notes += "\n\n" + speedups(df)
     notes += "\n\n" + seeds_note(df, group)
-    if commits_note(df):
-        notes += "\n\n" + commits_note(df)
+    for note in (time_cut_note(df), commits_note(df)):
+        notes += "\n\n" + note if note else ""
     out = gpu_out(Path(out), df)
     paths = [out.with_suffix(".md"), out.with_suffix(".tex"), out.with_suffix(".csv"), out.parent / f"{out.name}_runtime.png"]
     with atomic_write(paths[0], "w") as f:
         mixed = f" (rows from {df['commit'].nunique()} commits)" if commits_note(df) else ""
         f.write(f"# {name}{mixed}\n\n{_markdown(t)}\n{notes}\n\n{about}\n\n{prov}\n")
-    header = (prov, *about.split("\n\n"), seeds_note(df, group), *([commits_note(df)] if commits_note(df) else []))
+    header = (prov, *about.split("\n\n"), seeds_note(df, group), *(n for n in (time_cut_note(df), commits_note(df)) if n))
     comment = "".join(f"{{c}} {line}\n" for line in header)
     with atomic_write(paths[1], "w") as f:
         f.write(comment.format(c="%") + t.style.to_latex(hrules=True, multicol_align="c"))

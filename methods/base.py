@@ -47,7 +47,7 @@ class DrapeResult:
 class FitReport:
     """Summary of :meth:`DrapingMethod.fit`: wall time (s), optimisation steps, last loss terms,
     per-step loss history, per-epoch evaluation records (methods whose objective evaluates, e.g. the VAE's
-    collisions per epoch) and whether training was skipped because a checkpoint was loaded."""
+    collisions per epoch), the checkpoint a resumed training started from and how it stopped."""
 
     train_s: float = 0.0
     n_steps: int = 0
@@ -55,6 +55,7 @@ class FitReport:
     history: list[dict[str, float]] = field(default_factory=list)
     evaluations: list[dict[str, float]] = field(default_factory=list)
     resumed_from: str | None = None
+    stopped: str = "done"  # "time": cut by train.max_minutes before its budget's last step (a model that depends on machine speed)
 
 
 class DrapingMethod(ABC):

@@ -205,7 +205,9 @@ class _Method:
     def fit(self, data, train_cfg):
         self.calls.append(1)
         self.w = torch.arange(4.0)
-        return SimpleNamespace(train_s=1.0, history=[], evaluations=[])
+        from methods.base import FitReport
+
+        return FitReport(train_s=1.0)
 
     def settings_key(self):
         return None

@@ -625,3 +625,38 @@ def test_a_streamed_lbs_run_holds_no_garment_array_that_grows_with_its_frames(tm
     short, long = largest(10, 4), largest(40, 4)
     assert short == long < drape / 2
     assert largest(40, 1000) >= drape  # held whole
+
+
+def test_a_training_cut_by_max_minutes_is_recorded_and_warned_on_every_load(tmp_path, monkeypatch, body_lowres, caplog):
+    """A model whose training the time guard cut depends on the machine's speed: its checkpoint says so, the run
+    that trains it and every run that loads it return "time" (metrics.json's train_stopped) and a load warns."""
+    from drapebench.experiment import _checkpoint
+    from methods.base import DrapingMethod, FitReport
+
+    monkeypatch.setenv("DRAPEBENCH_DATA", str(tmp_path / "data"))
+
+    class Cut(DrapingMethod):
+        stopped = "time"
+
+        def fit(self, data, train_cfg=None):
+            return FitReport(train_s=1.0, n_steps=3, stopped=self.stopped)
+
+        def drape(self, garment, seq):
+            raise NotImplementedError
+
+        def state_dict(self):
+            return {"w": torch.ones(2)}
+
+        def load_state_dict(self, state):
+            pass
+
+    cfg = _compose(["method=lbs", "body=anny_lowres"])
+    garment = type("G", (), {"vertices": torch.zeros(3, 3), "faces": torch.zeros(1, 3, dtype=torch.long)})()
+    data = type("D", (), {"body": body_lowres, "material": None})()
+    train_cfg = {**OmegaConf.to_container(cfg.train, resolve=True), "dataset": None}
+    assert _checkpoint(Cut(), cfg, garment, data, train_cfg)[2] == "time"
+    with caplog.at_level("WARNING", logger="drapebench"):
+        assert _checkpoint(Cut(), cfg, garment, data, train_cfg)[2] == "time"  # loaded, not retrained
+    assert "cut by train.max_minutes" in caplog.text and "3 steps done" in caplog.text
+    Cut.stopped = "done"
+    assert _checkpoint(Cut(), cfg, garment, data, {**train_cfg, "seed": 99})[2] == "done"

@@ -322,6 +322,20 @@ def test_vertex_error_tables_print_the_reference_floor_or_how_to_measure_it(tmp_
     assert "Reference floor" not in write_table([runs / "0_lbs"], "baseline", tmp_path / "v", command="pytest")[0].read_text()
 
 
+def test_a_table_names_the_runs_whose_training_the_time_guard_cut(tmp_path):
+    import json
+    import shutil
+
+    runs = tmp_path / "runs"
+    for i, stopped in enumerate(["done", "time"]):
+        d = runs / f"{i}_lbs"
+        shutil.copytree(FIXTURES / "0_lbs_tshirt", d)
+        (d / "metrics.json").write_text(json.dumps({**json.loads((d / "metrics.json").read_text()), "seed": i, "train_stopped": stopped}))
+    md = write_table([runs], "baseline", tmp_path / "t", command="pytest")[0].read_text()
+    assert "**Time-cut training**: lbs tshirt seed 1:" in md and "seed 0" not in md.split("Time-cut")[1].split("\n")[0]
+    assert "Time-cut" not in write_table([runs / "0_lbs"], "baseline", tmp_path / "u", command="pytest")[0].read_text()
+
+
 def test_the_stability_table_has_a_row_per_run_and_failed_runs_with_their_cause(tmp_path):
     import json
     import shutil

@@ -157,7 +157,7 @@ class GAPS(DrapingMethod):
         finally:
             for h in hooks:
                 h.remove()
-        return FitReport(train_s=res.train_s, n_steps=res.n_steps, final_losses=res.history[-1] if res.history else {},
+        return FitReport(train_s=res.train_s, n_steps=res.n_steps, stopped=res.stopped, final_losses=res.history[-1] if res.history else {},
                          history=res.history, resumed_from=res.resumed_from)  # fmt: skip
 
     def _use_sequences(self, seqs: list, draw: int) -> None:

@@ -254,7 +254,7 @@ class GenSim(DrapingMethod):
                               self._batch, self._loss_terms, key)  # fmt: skip
         res = train(objective, budget, log_dir=log_dir)
         self.body = run_body
-        return FitReport(train_s=res.train_s, n_steps=res.n_steps, final_losses=res.history[-1] if res.history else {},
+        return FitReport(train_s=res.train_s, n_steps=res.n_steps, stopped=res.stopped, final_losses=res.history[-1] if res.history else {},
                          history=res.history, resumed_from=res.resumed_from)  # fmt: skip
 
     def _fabric(self) -> dict:

@@ -54,6 +54,7 @@ class VAEModel(DrapingMethod):
         self.diffused = self.sdf = None
         self.template = None
         self.evaluations: list[dict] = []
+        self.regressor_stopped: list[str] = []  # how the pose descriptor's and the regressor's trainings stopped
         self.projection_stats: dict = {}
 
     # ------------------------------------------------------------------ shared pieces
@@ -120,8 +121,9 @@ class VAEModel(DrapingMethod):
         self.evaluations = res.evaluations
         history = [{"stage": "vae", **h} for h in res.history] + self.fit_regressor(seqs, X, train_cfg, log_dir)
         final = {k: v for k, v in history[-1].items() if k != "stage"} if history and history[-1]["stage"] == "regressor" else {}
+        cut = res.stopped == "time" or "time" in self.regressor_stopped
         return FitReport(train_s=time.perf_counter() - t0, n_steps=len(history), final_losses=final, history=history,
-                         evaluations=self.evaluations)  # fmt: skip
+                         evaluations=self.evaluations, stopped="time" if cut else "done")  # fmt: skip
 
     def validation_split(self, seqs) -> tuple[list[int], list[int]]:
         """Positions of the training and the validation sequences among ``seqs``: ``val_sequences`` of them held
@@ -150,8 +152,10 @@ class VAEModel(DrapingMethod):
         """Train the pose descriptor (if learned) and the regressor on the trained VAE's posterior means of the
         canonical garments X (N, T, V, 3) m of ``seqs``, the :meth:`validation_split`'s sequences held out for
         validation; nothing with ``regressor.predict: mean_code``. Returns the training records, each with its
-        ``stage`` (pose, regressor)."""
+        ``stage`` (pose, regressor); ``regressor_stopped`` holds how each stage's training stopped ("time": cut
+        by its budget's max_minutes)."""
         train_idx, val_idx = self.validation_split(seqs)
+        self.regressor_stopped = []
         if self.p["regressor"]["predict"] == "mean_code":  # the control: nothing to train
             self.pose = self.regressor = None
             self._n_in = 0
@@ -161,8 +165,11 @@ class VAEModel(DrapingMethod):
         train_seqs = [seqs[i] for i in train_idx]
         history = []
         if self.p["regressor"]["pose"] == "learned":
-            history += [{"stage": "pose", **h} for h in self._train_pose(train_seqs, train_cfg).history]
+            pose = self._train_pose(train_seqs, train_cfg)
+            history += [{"stage": "pose", **h} for h in pose.history]
+            self.regressor_stopped.append(pose.stopped)
         res = self._train_regressor(train_seqs, codes, train_cfg, log_dir, ([seqs[i] for i in val_idx], X[val_idx]))
+        self.regressor_stopped.append(res.stopped)
         return history + [{"stage": "regressor", **h} for h in res.history]
 
     def _project(self, garment, seqs, drapes) -> Projection:
