@@ -14,6 +14,8 @@ from hydra import compose, initialize_config_dir
 from hydra.errors import ConfigCompositionException
 from omegaconf import OmegaConf
 
+from methods.base import DrapingMethod
+
 ROOT = Path(__file__).resolve().parents[1]
 FAST = ["body=anny_lowres", "motion.n_frames=10", "motion.transition=3"]
 
@@ -137,7 +139,7 @@ def test_gaps_optimum_composes_with_gaps_loss_and_its_solver_settings():
 
 def test_training_writes_losses_and_evaluations_csv_into_the_run_directory_and_a_loaded_checkpoint_too(tmp_path, monkeypatch, body_lowres):
     from drapebench.experiment import _checkpoint
-    from methods.base import DrapingMethod, FitReport
+    from methods.base import FitReport
 
     monkeypatch.setenv("DRAPEBENCH_DATA", str(tmp_path / "data"))
 
@@ -353,25 +355,16 @@ def test_a_diverged_method_stops_the_run_or_is_recorded(tmp_path, monkeypatch, o
 @pytest.mark.parametrize("generic, fits", [(True, 1), (False, 2)])
 def test_a_generic_method_trains_once_for_every_garment(generic, fits, tmp_path, monkeypatch, body_lowres):
     from drapebench.experiment import _checkpoint
-    from methods.base import DrapingMethod, FitReport
+    from methods.base import FitReport
 
     monkeypatch.setenv("DRAPEBENCH_DATA", str(tmp_path / "data"))
 
-    class Learned(DrapingMethod):
+    class Learned(_ConstantState):
         calls = []
 
         def fit(self, data, train_cfg=None):
             self.calls.append(1)
             return FitReport(train_s=1.0, n_steps=1)
-
-        def drape(self, garment, seq):
-            raise NotImplementedError
-
-        def state_dict(self):
-            return {"w": torch.ones(2)}
-
-        def load_state_dict(self, state):
-            pass
 
     Learned.generic = generic
     cfg = _compose(["method=lbs", "body=anny_lowres"])
@@ -631,24 +624,15 @@ def test_a_training_cut_by_max_minutes_is_recorded_and_warned_on_every_load(tmp_
     """A model whose training the time guard cut depends on the machine's speed: its checkpoint says so, the run
     that trains it and every run that loads it return "time" (metrics.json's train_stopped) and a load warns."""
     from drapebench.experiment import _checkpoint
-    from methods.base import DrapingMethod, FitReport
+    from methods.base import FitReport
 
     monkeypatch.setenv("DRAPEBENCH_DATA", str(tmp_path / "data"))
 
-    class Cut(DrapingMethod):
+    class Cut(_ConstantState):
         stopped = "time"
 
         def fit(self, data, train_cfg=None):
             return FitReport(train_s=1.0, n_steps=3, stopped=self.stopped)
-
-        def drape(self, garment, seq):
-            raise NotImplementedError
-
-        def state_dict(self):
-            return {"w": torch.ones(2)}
-
-        def load_state_dict(self, state):
-            pass
 
     cfg = _compose(["method=lbs", "body=anny_lowres"])
     garment = type("G", (), {"vertices": torch.zeros(3, 3), "faces": torch.zeros(1, 3, dtype=torch.long)})()
@@ -660,3 +644,19 @@ def test_a_training_cut_by_max_minutes_is_recorded_and_warned_on_every_load(tmp_
     assert "cut by train.max_minutes" in caplog.text and "3 steps done" in caplog.text
     Cut.stopped = "done"
     assert _checkpoint(Cut(), cfg, garment, data, {**train_cfg, "seed": 99})[2] == "done"
+
+
+class _ConstantState(DrapingMethod):
+    """A learned method whose state is a constant tensor and that never drapes (checkpoint tests)."""
+
+    def fit(self, data, train_cfg=None):
+        raise NotImplementedError
+
+    def drape(self, garment, seq):
+        raise NotImplementedError
+
+    def state_dict(self):
+        return {"w": torch.ones(2)}
+
+    def load_state_dict(self, state):
+        pass
