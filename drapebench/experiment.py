@@ -310,7 +310,12 @@ def _run(cfg: DictConfig, out: Path) -> dict:
              seq.n_frames, stages["scene_s"])  # fmt: skip
 
     t = time.perf_counter()
-    reference = scene.reference()
+    reference, reference_error = None, None
+    try:
+        reference = scene.reference()
+    except DrapeFailed as err:  # the reference simulation diverged: the method's drape and its own metrics stand
+        reference_error = str(err)
+        log.warning("the %s reference failed, so this run has no vertex error: %s", cfg.reference.solver, err)
     if reference is not None:
         stages["reference_s"] = time.perf_counter() - t
 
@@ -344,7 +349,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
         "setup_s": result.timings_ms.get("setup", 0.0) / 1e3,
         **{f"ms_{k}": v / seq.n_frames for k, v in result.timings_ms.items() if k != "setup"},
         "seed": int(cfg.seed), "train_seed": int(cfg.train.seed), "device": str(cfg.device), "experiment": cfg.experiment_name, "checkpoint": ckpt, "commit": git_commit(),
-        **({"train_stopped": train_stopped} if train_stopped else {}),
+        **({"train_stopped": train_stopped} if train_stopped else {}), **({"reference_error": reference_error} if reference_error else {}),
     }  # fmt: skip
     if export != "none":
         from drapebench.export import Drape, export_drape

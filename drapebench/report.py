@@ -158,17 +158,27 @@ def collect_failures(dirs) -> pd.DataFrame:
     return with_scene(pd.DataFrame(rows))
 
 
-def failure_notes(failed: pd.DataFrame, where) -> str:
+def failure_notes(failed: pd.DataFrame, where, what: str = "failed") -> str:
     """One line per distinct failure message (the runs it stopped, "method on <where(row)>", named once each, with
-    a count where runs repeat), in the order the failures were found; "" when none failed."""
+    a count where runs repeat, then ``what`` and the message), in the order the failures were found; "" when none
+    failed."""
     if failed.empty:
         return ""
     lines = []
     for message, rows in failed.groupby("message", sort=False):
         runs = pd.Series([f"{r.method} on {where(r)}" for _, r in rows.iterrows()]).value_counts(sort=False)
         names = ", ".join(f"{name}{f' (x{n})' if n > 1 else ''}" for name, n in runs.items())
-        lines.append(f"\n- {names} failed: {message}")
+        lines.append(f"\n- {names} {what}: {message}")
     return "".join(lines)
+
+
+def reference_failure_notes(df: pd.DataFrame, where) -> str:
+    """:func:`failure_notes` of the runs whose reference drape failed (``reference_error`` in metrics.json): they
+    have every metric but the vertex error; "" when none."""
+    if "reference_error" not in df:
+        return ""
+    lost = df[df["reference_error"].notna()].rename(columns={"reference_error": "message"})
+    return failure_notes(lost, where, "have no vertex error, their reference failed")
 
 
 def mark_failures(t: pd.DataFrame, failed: pd.DataFrame, group: str = "garment") -> pd.DataFrame:
@@ -673,6 +683,8 @@ def write_table(dirs, name: str, out: Path, command: str | None = None, methods:
     about = f"{scene(pd.concat([df, failed]))}\n\n{legend(metrics)}"
     where = (lambda r: " ".join(str(r.get(c, "")) for c in CASE_COLUMNS[1:5])) if group is None else (lambda r: r[group])  # noqa: E731
     notes = failure_notes(failed, where)
+    if "vertex_error_mm" in metrics:
+        notes += reference_failure_notes(df, where)
     if ts.note:
         notes += "\n" + ts.note
     if "vertex_error_mm" in metrics and reference_floor(df, group):

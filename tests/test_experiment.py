@@ -660,3 +660,24 @@ class _ConstantState(DrapingMethod):
 
     def load_state_dict(self, state):
         pass
+
+
+def test_a_run_whose_reference_fails_keeps_its_own_metrics_and_says_why_it_has_no_vertex_error(tmp_path, monkeypatch):
+    """The reference is what the drape is compared with; when its simulation diverges the method's drape and its
+    own metrics still stand: the run ends with them, metrics.json names the failure, the table says so."""
+    import drapebench.experiment
+    from drapebench.errors import DrapeFailed
+    from drapebench.experiment import run
+    from drapebench.report import write_table
+
+    def diverged(self):
+        raise DrapeFailed("reference simulation (vbd) of garment 'tshirt' diverged at frame 3")
+
+    monkeypatch.setattr(drapebench.experiment.Scene, "reference", diverged)
+    cfg, _ = _fresh(["reference=vbd"])
+    record = run(cfg, tmp_path / "run")
+    assert "vertex_error_mm" not in record and math.isfinite(record["eps_e"])
+    assert record["reference_error"].endswith("diverged at frame 3")
+    assert json.loads((tmp_path / "run" / "metrics.json").read_text())["reference_error"] == record["reference_error"]
+    md = write_table([tmp_path], "runtime_vs_error", tmp_path / "t", command="pytest")[0].read_text()  # a table with the vertex error
+    assert "- lbs on tshirt have no vertex error, their reference failed: reference simulation (vbd)" in md
