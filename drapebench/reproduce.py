@@ -27,6 +27,7 @@ import subprocess
 import sys
 import time
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 
 from drapebench.cache import PROJECT_ROOT, atomic_write
@@ -66,7 +67,8 @@ def expand(sweep: Sweep, quick: bool = False) -> list:
         overrides = parser.parse_overrides([*params, *sweep.overrides, *(QUICK if quick else ())])
         jobs = BasicSweeper.split_arguments(overrides, None)[0]
         if sweep.reference_garments:
-            jobs = [j for j in jobs if _garment(j) in sweep.reference_garments or not _needs_reference(sweep.experiment, j)]
+            method = lambda j: tuple(o for o in j if o.split("=", 1)[0].lstrip("+") in ("method", "method.impl"))  # noqa: E731
+            jobs = [j for j in jobs if _garment(j) in sweep.reference_garments or not _needs_reference(sweep.experiment, method(j))]
     if quick:
         seen, kept = set(), []
         for job in jobs:
@@ -83,13 +85,14 @@ def _garment(job: list) -> str | None:
     return next((o.split("=", 1)[1] for o in job if o.split("=", 1)[0].lstrip("+") == "garment"), None)
 
 
-def _needs_reference(experiment: str, job: list) -> bool:
-    """Whether the method of ``job`` (a run's overrides) trains on reference drapes (composed inside Hydra's context)."""
+@lru_cache(maxsize=None)
+def _needs_reference(experiment: str, method: tuple) -> bool:
+    """Whether the method that the overrides ``method`` choose trains on reference drapes (composed once per
+    method, inside Hydra's context)."""
     from hydra import compose
 
     from drapebench.experiment import method_class
 
-    method = [o for o in job if o.split("=", 1)[0].lstrip("+") in ("method", "method.impl")]
     return method_class(compose("config", overrides=[f"experiment={experiment}", *method])).needs_reference
 
 
