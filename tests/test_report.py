@@ -178,7 +178,7 @@ def test_committed_tables_name_the_command_and_commit_that_made_them():
     import re
 
     reports = Path(__file__).resolve().parent.parent / "reports"
-    prov = re.compile(r"Produced by `python (?:-m drapebench\.report|-m methods\.\w+\.\w+|benchmarks/bench_\w+\.py) [^`]+` from runs at commit\(s\) [0-9a-f]{7,40}")
+    prov = re.compile(r"Produced by `python (?:-m drapebench\.(?:report|reproduce)|-m methods\.\w+\.\w+|benchmarks/bench_\w+\.py) [^`]+` from runs at commit\(s\) [0-9a-f]{7,40}")
     names = {p.stem for p in reports.glob("*.csv")}  # a table is its .md, .tex and .csv
     tables = sorted(p for p in reports.glob("*") if p.suffix in (".md", ".tex", ".csv") and p.stem in names)
     assert tables
