@@ -203,6 +203,11 @@ class Cache:
         name = content_hash(self.version, *key_parts)
         return cache_dir(self.kind) / (f"{prefix}_{name}{suffix}" if prefix else f"{name}{suffix}")
 
+    def sealed(self, path: str | os.PathLike) -> bool:
+        """Whether the entry ``path`` is written and sealed (its checksum is checked by :meth:`load`, not here)."""
+        path = Path(path)
+        return path.exists() and _seal_path(path).exists()
+
     def load(self, path: str | os.PathLike, reader: Callable[[Path], Any], force: bool = False) -> Any:
         """``reader(path)`` for a sealed, intact entry; None (with a warning naming the file if one
         exists but is unusable) to rebuild it. ``force`` (or an enclosing :func:`forcing` that has not

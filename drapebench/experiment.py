@@ -126,6 +126,21 @@ def drape_ms_per_frame(timings_ms: dict, drape_s: float, n_frames: int) -> float
     return (drape_s * 1e3 - timings_ms.get("setup", 0.0)) / n_frames
 
 
+def checkpoint_path(method, cfg: DictConfig, garment, body, train_cfg: dict | None = None) -> Path:
+    """Where the model ``method`` (built from ``cfg.method.params``) trained under ``cfg`` is cached: the hash of the
+    method config, the method's settings_key, the training config (``train_cfg``, default ``cfg.train``), the training
+    data's content, the garment (not for a generic method), the body it trains on (``method.trained_body`` of the
+    run's ``body``) and the material."""
+    train_cfg = OmegaConf.to_container(cfg.train, resolve=True) if train_cfg is None else train_cfg
+    data_key = dataset_hash(train_cfg["dataset"]) if train_cfg.get("dataset") else None
+    if method.needs_reference:  # trained on the reference set of the `data` preset
+        data_key = OmegaConf.to_container(cfg.data, resolve=True)
+    scene_garment = None if method.generic else (garment.vertices, garment.faces)  # one model for any garment: not keyed by it
+    settings = method.settings_key()
+    return CHECKPOINTS.path(OmegaConf.to_container(cfg.method, resolve=True), *([settings] if settings is not None else []), train_cfg, data_key, scene_garment,
+                            body_key(method.trained_body(body)), OmegaConf.to_container(cfg.material, resolve=True), prefix=cfg.method.name, suffix=".pt")  # fmt: skip
+
+
 def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir: Path | None = None):
     """Train, or load a checkpoint whose hash (method config + the method's settings_key + training config + training data content + garment
     (not for a generic method) + the body it trains on (``method.trained_body``) + material) matches. ``log_dir`` (passed to ``fit`` as the train config's ``log_dir``
@@ -133,13 +148,7 @@ def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir
     ``evaluations.csv``, the same from a fresh fit or a loaded checkpoint. Returns the training time (s), the
     checkpoint's path and how its training stopped ("done"; "time": cut by ``train.max_minutes``, warned again on
     every load); a method with nothing learned: its fit's time, None, None."""
-    data_key = dataset_hash(train_cfg["dataset"]) if train_cfg.get("dataset") else None
-    if method.needs_reference:  # trained on the reference set of the `data` preset
-        data_key = OmegaConf.to_container(cfg.data, resolve=True)
-    scene_garment = None if method.generic else (garment.vertices, garment.faces)  # one model for any garment: not keyed by it
-    settings = method.settings_key()
-    path = CHECKPOINTS.path(OmegaConf.to_container(cfg.method, resolve=True), *([settings] if settings is not None else []), train_cfg, data_key, scene_garment,
-                            body_key(method.trained_body(data.body)), OmegaConf.to_container(cfg.material, resolve=True), prefix=cfg.method.name, suffix=".pt")  # fmt: skip
+    path = checkpoint_path(method, cfg, garment, data.body, train_cfg)
     state = CHECKPOINTS.load(path, partial(torch.load, map_location="cpu", weights_only=False), force=bool(cfg.force))
     if state is not None:
         method.bind(data.body, data.material)

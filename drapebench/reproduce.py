@@ -203,7 +203,7 @@ def main(argv=None) -> int:
     parser.add_argument("--quick", action="store_true", help="every table's pipeline on a tiny scene, untrained, into outputs/reproduce_quick")
     parser.add_argument("--out", type=Path, help="where the tables go (default: reports/, or outputs/reproduce_quick/reports with --quick)")
     parser.add_argument("--runs", type=Path, help="where the runs go (default: outputs/reproduce, or outputs/reproduce_quick/runs)")
-    parser.add_argument("--dry-run", action="store_true", help="list the runs and whether each has finished, and the trainings the unfinished ones need per method; run nothing")
+    parser.add_argument("--dry-run", action="store_true", help="list the runs and whether each has finished, and per method the trainings the unfinished ones need and how many are cached; run nothing")
     args = parser.parse_args(argv)
     unknown = [t for t in args.tables if t not in tables]
     if unknown:
@@ -220,8 +220,8 @@ def main(argv=None) -> int:
         for j in jobs:
             print(f"{'done' if finished(j, at) else 'todo'}  {j.table}: {j.sweep.experiment} {' '.join(j.overrides)}")
         todo = [j for j in jobs if not finished(j, at)]
-        print(f"\nthe {len(todo)} runs to do, per method, and the distinct trainings they need from a clean cache "
-              "(the time of each: the README's budget table):")
+        print(f"\nthe {len(todo)} runs to do, per method, the distinct trainings they need and how many of those are in the "
+              "checkpoint cache already (the time of each training: the README's budget table):")
         print("\n".join(summary(todo)))
         return 0
     failed = run_all(jobs, at)

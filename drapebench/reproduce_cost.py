@@ -3,8 +3,10 @@ per method, its runs and the distinct trainings they need (each training's time:
 
 A training is identified as a checkpoint is (``drapebench.experiment``): the method's config, the training budget and
 data, the body, the material, the seed, and the garment unless the method is generic (one model for any garment);
-a method that learns nothing (``learns`` False) or a run with ``train.epochs=0`` needs none. Which trainings are
-cached already is not known here (that needs each scene's content hash): the counts are what a clean cache costs.
+a method that learns nothing (``learns`` False) or a run with ``train.epochs=0`` needs none. The trainings already
+in the checkpoint cache are counted apart (:func:`cached`, which builds each training's scene for its content hash):
+the trainings not cached are what is left to train, the runs themselves then only drape and score. A training
+cached by another commit's code is loaded all the same (a checkpoint is keyed by configuration, not by code).
 """
 
 from __future__ import annotations
@@ -34,15 +36,15 @@ def training_identity(cfg, methods: dict | None = None) -> tuple | None:
 
 
 def tally(jobs: list) -> dict:
-    """Per method name (in the order the runs first name it): ``{"runs": n, "trainings": set of identities}``
-    over ``jobs`` (:class:`drapebench.reproduce.Job`), each composed as its run composes it."""
+    """Per method name (in the order the runs first name it): ``{"runs": n, "trainings": {identity: a composed run
+    config that needs it}}`` over ``jobs`` (:class:`drapebench.reproduce.Job`), each composed as its run composes it."""
     from hydra import compose, initialize_config_dir
 
     from drapebench.cache import PROJECT_ROOT
     from drapebench.schema import register
 
     register()
-    out, methods = defaultdict(lambda: {"runs": 0, "trainings": set()}), {}
+    out, methods = defaultdict(lambda: {"runs": 0, "trainings": {}}), {}
     alike = defaultdict(int)  # runs differing only in what no checkpoint's key holds (the test motion, dtype) train alike
     for job in jobs:
         alike[(job.sweep.experiment, tuple(o for o in job.overrides if not o.lstrip("+").startswith(UNKEYED)))] += 1
@@ -53,14 +55,36 @@ def tally(jobs: list) -> dict:
             row["runs"] += n
             identity = training_identity(cfg, methods)
             if identity is not None:
-                row["trainings"].add(identity)
+                row["trainings"].setdefault(identity, cfg)
     return dict(out)
 
 
+def cached(configs) -> int:
+    """How many of the trainings that the composed run configs ``configs`` need have a sealed checkpoint in the cache
+    (the path :func:`drapebench.experiment.checkpoint_path` gives the run; each distinct scene is built once)."""
+    from omegaconf import OmegaConf
+
+    from drapebench.experiment import CHECKPOINTS, checkpoint_path, method_class
+    from drapebench.scene import Scene
+
+    scenes, n = {}, 0
+    for cfg in configs:
+        key = repr([OmegaConf.to_container(cfg[k], resolve=True) for k in ("body", "garment", "motion")] + [str(cfg.dtype)])
+        if key not in scenes:
+            scenes[key] = Scene.from_config(cfg, device="cpu")
+        scene = scenes[key]
+        method = method_class(cfg)(OmegaConf.to_container(cfg.method.params, resolve=True))
+        n += CHECKPOINTS.sealed(checkpoint_path(method, cfg, scene.garment, scene.body))
+    return n
+
+
 def summary(jobs: list) -> list:
-    """Lines: per method (that has runs) its runs and the distinct trainings they need, then the totals."""
+    """Lines: per method (that has runs) its runs, the distinct trainings they need and how many of those are
+    cached already, then the totals."""
     counts = tally(jobs)
-    lines = [f"{'method':<24}{'runs':>6}{'trainings':>11}"]
-    lines += [f"{name:<24}{row['runs']:>6}{len(row['trainings']):>11}" for name, row in counts.items()]
-    lines.append(f"{'all':<24}{sum(r['runs'] for r in counts.values()):>6}{sum(len(r['trainings']) for r in counts.values()):>11}")
+    have = {name: cached(row["trainings"].values()) for name, row in counts.items()}
+    lines = [f"{'method':<24}{'runs':>6}{'trainings':>11}{'cached':>8}"]
+    lines += [f"{name:<24}{row['runs']:>6}{len(row['trainings']):>11}{have[name]:>8}" for name, row in counts.items()]
+    lines.append(f"{'all':<24}{sum(r['runs'] for r in counts.values()):>6}{sum(len(r['trainings']) for r in counts.values()):>11}"
+                 f"{sum(have.values()):>8}")
     return lines

@@ -112,4 +112,23 @@ def test_the_cost_tally_counts_a_training_per_model_not_per_run():
     assert (pen["gensim"]["runs"], len(pen["gensim"]["trainings"])) == (6, 2)
     assert (pen["gensim_arap"]["runs"], len(pen["gensim_arap"]["trainings"])) == (6, 0)  # the ARAP stage learns nothing
     lines = summary(_jobs(Sweep("gaps_table3", ("seed=0,1,2",))))
-    assert lines[-1].split() == ["all", "18", "6"]
+    assert lines[-1].split() == ["all", "18", "6", "0"]  # the test's empty cache holds none of them
+
+
+def test_the_cost_counts_a_cached_checkpoint_where_the_run_would_load_it():
+    """A checkpoint stored at the path the run computes (drapebench.experiment.checkpoint_path) is counted as cached for
+    its training alone; one stored under another seed's key is not."""
+    from omegaconf import OmegaConf
+
+    from drapebench.experiment import CHECKPOINTS, checkpoint_path, method_class
+    from drapebench.reproduce_cost import cached
+    from drapebench.scene import Scene
+
+    counts = tally(_jobs(Sweep("gaps_table3", ("method=gaps", "seed=0,1"))))
+    configs = list(counts["gaps"]["trainings"].values())
+    assert len(configs) == 2 and cached(configs) == 0
+    cfg = next(c for c in configs if c.seed == 1)
+    scene = Scene.from_config(cfg, device="cpu")
+    method = method_class(cfg)(OmegaConf.to_container(cfg.method.params, resolve=True))
+    CHECKPOINTS.store(checkpoint_path(method, cfg, scene.garment, scene.body), lambda tmp: Path(tmp).write_bytes(b"model"))
+    assert cached(configs) == 1
