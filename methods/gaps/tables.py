@@ -35,18 +35,19 @@ TABLES = [
               ("train_s", "converged_s", "ms_per_frame"), sweeps_of="gaps_table1", methods=("lbs", "pbs", "snug_like", "ncs_like", "gaps")),
     *[TableSpec(f"gaps_heldout_{g}", f"GAPS against its own skinning, its loss's optimum and vbd on held-out motion and "
                 f"shapes: the {g}", ("vertex_error_mm", "vertex_error_mm@untrained", "eps_c", "eps_c@postprocessed", "loss_gap_closed"), group="shape",
-                sweeps=(Sweep("gaps_heldout", (SEEDS, "method=gaps", f"garment={g}")), Sweep("gaps_heldout", ("method=lbs,gaps_optimum", f"garment={g}"))),
+                sweeps=(Sweep("gaps_heldout", (SEEDS, "method=gaps", f"garment={g}", ONE_THREAD)),
+                        Sweep("gaps_heldout", ("method=lbs,gaps_optimum", f"garment={g}", ONE_THREAD))),
                 methods=("lbs", "gaps_optimum", "gaps"), garments=(g,)) for g in ("tshirt", "dress", "skirt")],  # fmt: skip
     TableSpec("gaps_heldout_tshirt_anny", "gaps_heldout_tshirt on the full anny body",
               ("vertex_error_mm", "vertex_error_mm@untrained", "eps_c", "eps_c@postprocessed", "loss_gap_closed"), group="shape",
-              sweeps=(Sweep("gaps_heldout", (SEEDS, "method=gaps", "garment=tshirt", "body=anny")),
-                      Sweep("gaps_heldout", ("method=lbs,gaps_optimum", "garment=tshirt", "body=anny"))),
+              sweeps=(Sweep("gaps_heldout", (SEEDS, "method=gaps", "garment=tshirt", "body=anny", ONE_THREAD)),
+                      Sweep("gaps_heldout", ("method=lbs,gaps_optimum", "garment=tshirt", "body=anny", ONE_THREAD))),
               methods=("lbs", "gaps_optimum", "gaps")),  # fmt: skip
     TableSpec("gaps_generalisation", "GAPS trained on named motions and on random motion against its untrained skinning "
               "and lbs on the held-out kick and on dance", ("eps_e", "eps_a", "eps_c", "vertex_error_mm", "energy_j"), group="scene",
-              sweeps=(Sweep("gaps_generalisation", ("method=lbs",)), *untrained("gaps_generalisation", ("gaps",)),
-                      Sweep("gaps_generalisation", ("method=gaps",)),
-                      Sweep("gaps_generalisation", ("method=gaps", "method.name=gaps_random", "train.dataset=train_random_small")),
-                      Sweep("gaps_generalisation", ("method=pbs_style3d,pbs_half_dt",))),
+              sweeps=(Sweep("gaps_generalisation", ("method=lbs", ONE_THREAD)), *untrained("gaps_generalisation", ("gaps",), ONE_THREAD),
+                      Sweep("gaps_generalisation", ("method=gaps", ONE_THREAD)),
+                      Sweep("gaps_generalisation", ("method=gaps", "method.name=gaps_random", "train.dataset=train_random_small", ONE_THREAD)),
+                      Sweep("gaps_generalisation", ("method=pbs_style3d,pbs_half_dt", ONE_THREAD))),
               methods=("lbs", "gaps_untrained", "gaps", "gaps_random", "pbs_style3d", "pbs_half_dt")),  # fmt: skip
 ]
