@@ -146,8 +146,8 @@ def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir
     (not for a generic method) + the body it trains on (``method.trained_body``) + material) matches. ``log_dir`` (passed to ``fit`` as the train config's ``log_dir``
     entry, for live logs) gets the fit's ``losses.csv`` (per step) and, when the method evaluates per epoch,
     ``evaluations.csv``, the same from a fresh fit or a loaded checkpoint. Returns the training time (s), the
-    checkpoint's path and how its training stopped ("done"; "time": cut by ``train.max_minutes``, warned again on
-    every load); a method with nothing learned: its fit's time, None, None."""
+    checkpoint's path and how its training stopped ("done"; "clock": its lr decayed by ``train.max_minutes``' clock;
+    "time": cut by it; the last two warned again on every load); a method with nothing learned: its fit's time, None, None."""
     path = checkpoint_path(method, cfg, garment, data.body, train_cfg)
     state = CHECKPOINTS.load(path, partial(torch.load, map_location="cpu", weights_only=False), force=bool(cfg.force))
     if state is not None:
@@ -159,6 +159,9 @@ def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir
         if stopped == "time":
             log.warning("checkpoint %s was cut by train.max_minutes before its budget's last step (%d steps done): its model "
                         "depends on the speed of the machine that trained it; force=true retrains it", path.name, state.get("n_steps", 0))  # fmt: skip
+        elif stopped == "clock":
+            log.warning("checkpoint %s ran every step, but its learning rate decayed by train.max_minutes' clock ahead of the "
+                        "steps: its model depends on the speed of the machine that trained it; force=true retrains it", path.name)  # fmt: skip
         return state["train_s"], str(path), stopped
     report = method.fit(data, train_cfg if log_dir is None else {**train_cfg, "log_dir": str(log_dir)})
     _write_fit_logs(log_dir, report.history, report.evaluations)

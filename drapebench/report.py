@@ -279,17 +279,21 @@ def seeds_note(df: pd.DataFrame, group: str | None) -> str:
 
 
 def time_cut_note(df: pd.DataFrame) -> str:
-    """A warning naming the runs whose model's training ``train.max_minutes`` cut before its budget's last step
-    (``train_stopped`` "time" in metrics.json): such a model depends on the speed of the machine that trained it
-    ("" when none was cut)."""
+    """A warning naming the runs whose model depends on the speed of the machine that trained it (``train_stopped``
+    in metrics.json): "time", cut by ``train.max_minutes`` before its budget's last step, and "clock", every step run
+    but the learning rate decayed by that clock ahead of the steps ("" when there is none)."""
     if "train_stopped" not in df:
         return ""
-    cut = df[df["train_stopped"] == "time"]
-    if cut.empty:
-        return ""
-    runs = ", ".join(dict.fromkeys(f"{r['method']} {r['garment']} seed {r.get('seed', '?')}" for _, r in cut.iterrows()))
-    return (f"**Time-cut training**: {runs}: train.max_minutes stopped the training before its budget's last step, so "
-            "the model depends on the machine's speed (rerun on an idle machine, or with a larger max_minutes and force=true).")
+    notes = []
+    for stop, label, why in (("time", "Time-cut training", "train.max_minutes stopped the training before its budget's last step"),
+                             ("clock", "Clock-scheduled training", "every step ran, but the learning rate decayed by train.max_minutes' "
+                                                                   "clock ahead of the steps")):  # fmt: skip
+        hit = df[df["train_stopped"] == stop]
+        if not hit.empty:
+            runs = ", ".join(dict.fromkeys(f"{r['method']} {r['garment']} seed {r.get('seed', '?')}" for _, r in hit.iterrows()))
+            notes.append(f"**{label}**: {runs}: {why}, so the model depends on the machine's speed (rerun on an idle machine, "
+                         "or with a larger max_minutes and force=true).")
+    return "\n\n".join(notes)
 
 
 def commits_note(df: pd.DataFrame) -> str:
@@ -699,7 +703,7 @@ def write_table(dirs, name: str, out: Path, command: str | None = None, methods:
     with atomic_write(paths[0], "w") as f:
         mixed = f" (rows from {df['commit'].nunique()} commits)" if commits_note(df) else ""
         f.write(f"# {name}{mixed}\n\n{_markdown(t)}\n{notes}\n\n{about}\n\n{prov}\n")
-    header = (prov, *about.split("\n\n"), seeds_note(df, group), *(n for n in (time_cut_note(df), commits_note(df)) if n))
+    header = (prov, *about.split("\n\n"), seeds_note(df, group), *(p for n in (time_cut_note(df), commits_note(df)) for p in n.split("\n\n") if p))
     comment = "".join(f"{{c}} {line}\n" for line in header)
     with atomic_write(paths[1], "w") as f:
         f.write(comment.format(c="%") + t.style.to_latex(hrules=True, multicol_align="c"))

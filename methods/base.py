@@ -55,7 +55,7 @@ class FitReport:
     history: list[dict[str, float]] = field(default_factory=list)
     evaluations: list[dict[str, float]] = field(default_factory=list)
     resumed_from: str | None = None
-    stopped: str = "done"  # "time": cut by train.max_minutes before its budget's last step (a model that depends on machine speed)
+    stopped: str = "done"  # "time": cut by train.max_minutes; "clock": every step, its lr decayed by that clock (drapebench.train.TrainResult)
 
 
 class DrapingMethod(ABC):

@@ -642,6 +642,12 @@ def test_a_training_cut_by_max_minutes_is_recorded_and_warned_on_every_load(tmp_
     with caplog.at_level("WARNING", logger="drapebench"):
         assert _checkpoint(Cut(), cfg, garment, data, train_cfg)[2] == "time"  # loaded, not retrained
     assert "cut by train.max_minutes" in caplog.text and "3 steps done" in caplog.text
+    Cut.stopped = "clock"  # every step, its lr decayed by the clock: recorded and warned on a load too
+    assert _checkpoint(Cut(), cfg, garment, data, {**train_cfg, "seed": 98})[2] == "clock"
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="drapebench"):
+        assert _checkpoint(Cut(), cfg, garment, data, {**train_cfg, "seed": 98})[2] == "clock"
+    assert "decayed by train.max_minutes' clock" in caplog.text
     Cut.stopped = "done"
     assert _checkpoint(Cut(), cfg, garment, data, {**train_cfg, "seed": 99})[2] == "done"
 

@@ -327,12 +327,13 @@ def test_a_table_names_the_runs_whose_training_the_time_guard_cut(tmp_path):
     import shutil
 
     runs = tmp_path / "runs"
-    for i, stopped in enumerate(["done", "time"]):
+    for i, stopped in enumerate(["done", "time", "clock"]):
         d = runs / f"{i}_lbs"
         shutil.copytree(FIXTURES / "0_lbs_tshirt", d)
         (d / "metrics.json").write_text(json.dumps({**json.loads((d / "metrics.json").read_text()), "seed": i, "train_stopped": stopped}))
     md = write_table([runs], "baseline", tmp_path / "t", command="pytest")[0].read_text()
     assert "**Time-cut training**: lbs tshirt seed 1:" in md and "seed 0" not in md.split("Time-cut")[1].split("\n")[0]
+    assert "**Clock-scheduled training**: lbs tshirt seed 2:" in md and "seed 1" not in md.split("Clock-scheduled")[1].split("\n")[0]
     assert "Time-cut" not in write_table([runs / "0_lbs"], "baseline", tmp_path / "u", command="pytest")[0].read_text()
 
 

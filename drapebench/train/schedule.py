@@ -14,3 +14,21 @@ def scheduled_lr(cfg, epoch: int, step_fraction: float, train_s: float) -> float
         done = step_fraction if cfg.max_minutes is None else max(step_fraction, train_s / (60.0 * cfg.max_minutes))
         lr *= min(1.0, max(0.0, 1.0 - done) / cfg.lr_decay_fraction)
     return lr
+
+
+def clock_driven(cfg, step_fraction: float, train_s: float) -> bool:
+    """Whether the decay of :func:`scheduled_lr` at this step follows the clock rather than the steps: ``max_minutes``'
+    share used (``train_s`` s) is ahead of the steps' share and inside the decay. A model trained so depends on the
+    speed of the machine that trained it, even when it reaches its last step."""
+    if not cfg.lr_decay_fraction or cfg.max_minutes is None:
+        return False
+    by_time = train_s / (60.0 * cfg.max_minutes)
+    return by_time > step_fraction and 1.0 - by_time < cfg.lr_decay_fraction
+
+
+STOPS = ("done", "clock", "time")  # how a training ended, from deterministic to cut (TrainResult.stopped)
+
+
+def combined_stop(*stops: str) -> str:
+    """How a training of several stages ended: the least deterministic of their ``stopped`` values (:data:`STOPS`)."""
+    return max(stops, key=STOPS.index, default="done")

@@ -32,7 +32,7 @@ from drapebench.progress import progress, progress_enabled
 from drapebench.results import git_commit
 from drapebench.schema import TrainConf
 from drapebench.train.checkpoint import load_state, remove_state, save_state, write_losses
-from drapebench.train.schedule import scheduled_lr
+from drapebench.train.schedule import clock_driven, scheduled_lr
 
 log = logging.getLogger("drapebench")
 
@@ -77,7 +77,9 @@ class Objective:
 @dataclass
 class TrainResult:
     """train_s: training time in s (resumed runs included); n_steps: steps done; history: one record per
-    step (step, epoch, lr, loss, each term, grad_norm); stopped: "done" or "time"; resumed_from: the
+    step (step, epoch, lr, loss, each term, grad_norm); stopped: "done" (every step, on the steps' schedule),
+    "clock" (every step, but the lr decay followed ``max_minutes``' clock ahead of the steps at some step: a machine
+    slower than the budget assumes) or "time" (cut by ``max_minutes``); resumed_from: the
     checkpoint a resumed run started from; evaluations: one record per completed epoch (epoch, step and
     the values of :attr:`Objective.evaluate`), empty without it."""
 
@@ -127,7 +129,7 @@ def train(objective: Objective, cfg: Mapping[str, Any] | TrainConf | None, log_d
     device = params[0].device  # the run's device: the objective's tensors live there
     path = Path(checkpoint_dir or cache_dir("checkpoints")) / f"{ob.name}_partial_{ob.key}.pt"
     rng = np.random.default_rng(cfg.seed)
-    step, history, evaluations, t_prev, best_loss, best, resumed = 0, [], [], 0.0, math.inf, None, None
+    step, history, evaluations, t_prev, best_loss, best, resumed, clocked = 0, [], [], 0.0, math.inf, None, None, False
     ema = [p.detach().clone() for p in params] if cfg.ema_decay else None
     state = load_state(path, ob.key)
     if state is None and path.exists():
@@ -140,7 +142,7 @@ def train(objective: Objective, cfg: Mapping[str, Any] | TrainConf | None, log_d
                 p.copy_(saved)
         opt.load_state_dict(state["opt"])  # moves its state to each parameter's device
         step, history, t_prev, rng, order = state["step"], state["history"], state["train_s"], state["rng"], state["order"]
-        evaluations = state.get("evaluations", [])
+        evaluations, clocked = state.get("evaluations", []), state.get("clocked", False)
         torch.set_rng_state(state["torch_rng"])
         if state.get("cuda_rng") is not None and device.type == "cuda":
             torch.cuda.set_rng_state(state["cuda_rng"], device)
@@ -160,7 +162,9 @@ def train(objective: Objective, cfg: Mapping[str, Any] | TrainConf | None, log_d
         if k == 0:
             order = rng.permutation(ob.n_items)
         at = Step(step, epoch, rng)
-        lr = scheduled_lr(cfg, epoch, step / total, t_prev + time.perf_counter() - t0)
+        trained_s = t_prev + time.perf_counter() - t0
+        lr = scheduled_lr(cfg, epoch, step / total, trained_s)
+        clocked = clocked or clock_driven(cfg, step / total, trained_s)
         for g in opt.param_groups:
             g["lr"] = g["factor"] * lr
         batch = ob.batch(order[k * cfg.batch_size : (k + 1) * cfg.batch_size], at)
@@ -203,7 +207,7 @@ def train(objective: Objective, cfg: Mapping[str, Any] | TrainConf | None, log_d
             save_state(path, {"key": ob.key, "commit": git_commit(), "step": step, "history": history, "train_s": t_prev + elapsed, "params": params,
                               "opt": opt.state_dict(), "rng": rng, "torch_rng": torch.get_rng_state(), "order": order,
                               "cuda_rng": torch.cuda.get_rng_state(device) if device.type == "cuda" else None,
-                              "ema": ema, "best_loss": best_loss, "best": best, "evaluations": evaluations})  # fmt: skip
+                              "ema": ema, "best_loss": best_loss, "best": best, "evaluations": evaluations, "clocked": clocked})  # fmt: skip
             if log_dir is not None:
                 write_logs(log_dir, history, evaluations)
         if timed_out:
@@ -213,6 +217,11 @@ def train(objective: Objective, cfg: Mapping[str, Any] | TrainConf | None, log_d
             stopped = "time"
             break
     bar.close()
+    if stopped == "done" and clocked:
+        stopped = "clock"
+        log.warning("%s: the learning rate decayed by max_minutes' clock (%g) ahead of the steps: every step ran, but the model "
+                    "depends on machine speed (train on an idle machine, or raise max_minutes, for a deterministic result)",
+                    ob.name, cfg.max_minutes)  # fmt: skip
     with torch.no_grad():
         final = best if stopped == "time" and best is not None else ema
         if final is not None:  # the averaged (or best) weights are the model

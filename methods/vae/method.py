@@ -14,7 +14,7 @@ import time
 import torch
 
 from drapebench.cache import Cache, body_key, content_hash
-from drapebench.train import Objective, train, train_config, write_logs
+from drapebench.train import Objective, combined_stop, train, train_config, write_logs
 from methods.base import DrapeResult, DrapingMethod, FitReport
 from methods.vae import losses
 from methods.vae.config import vae_params
@@ -121,9 +121,8 @@ class VAEModel(DrapingMethod):
         self.evaluations = res.evaluations
         history = [{"stage": "vae", **h} for h in res.history] + self.fit_regressor(seqs, X, train_cfg, log_dir)
         final = {k: v for k, v in history[-1].items() if k != "stage"} if history and history[-1]["stage"] == "regressor" else {}
-        cut = res.stopped == "time" or "time" in self.regressor_stopped
         return FitReport(train_s=time.perf_counter() - t0, n_steps=len(history), final_losses=final, history=history,
-                         evaluations=self.evaluations, stopped="time" if cut else "done")  # fmt: skip
+                         evaluations=self.evaluations, stopped=combined_stop(res.stopped, *self.regressor_stopped))  # fmt: skip
 
     def validation_split(self, seqs) -> tuple[list[int], list[int]]:
         """Positions of the training and the validation sequences among ``seqs``: ``val_sequences`` of them held

@@ -171,6 +171,24 @@ def test_the_time_budget_stops_with_a_warning_and_keeps_the_state_of_lowest_trai
     assert not torch.equal(w, at_step[-1])
 
 
+def test_a_training_whose_lr_decay_followed_the_clock_says_so_though_it_ran_every_step(tmp_path, caplog):
+    """A slow first step (1.2 s of a 2 s max_minutes) puts the clock's share ahead of the steps' inside the decay: every
+    step runs, the training ends "clock" (its model depends on machine speed) and warns; with ample time it is "done"."""
+
+    def slow_start(objective):
+        inner = objective.loss_terms
+        objective.loss_terms = lambda b, at: (time.sleep(1.2) if at.step == 0 else None) or inner(b, at)
+        return objective
+
+    budget = {**BUDGET, "steps": 20, "ema_decay": None, "lr_switch_epoch": None, "lr_decay_fraction": 0.5}
+    with caplog.at_level(logging.WARNING, logger="drapebench"):
+        res = train(slow_start(toy(key="clock")[0]), {**budget, "max_minutes": 2.0 / 60}, checkpoint_dir=tmp_path)
+    assert res.stopped == "clock" and res.n_steps == 20 and "clock" in caplog.text
+    assert res.history[1]["lr"] < BUDGET["lr"] - 1e-12  # decayed at step 1 of 20, by the clock
+    ample = train(slow_start(toy(key="ample")[0]), {**budget, "max_minutes": 1.0}, checkpoint_dir=tmp_path)
+    assert ample.stopped == "done" and ample.history[1]["lr"] == pytest.approx(BUDGET["lr"])
+
+
 def test_lr_decays_over_the_step_or_the_time_budget_whichever_is_further():
     tp = TrainConf(lr=1e-3, lr_after=1e-4, lr_switch_epoch=2, lr_decay_fraction=0.5, max_minutes=None)
     assert scheduled_lr(tp, 0, 0.25, 1e6) == pytest.approx(1e-3)  # no time budget: the time is ignored
@@ -223,3 +241,10 @@ def test_a_group_s_adam_eps_makes_its_steps_proportional_to_the_gradient(tmp_pat
     lr_v = BUDGET["lr"] * 0.5
     assert moved[None] == pytest.approx(lr_v, rel=1e-3)  # Adam's first step: lr per weight
     assert moved[1e3] < 1e-2 * lr_v
+
+
+def test_a_training_of_several_stages_ends_as_its_least_deterministic_stage():
+    from drapebench.train import combined_stop
+
+    assert combined_stop("done", "clock", "done") == "clock" and combined_stop("clock", "time") == "time"
+    assert combined_stop("done") == "done" and combined_stop() == "done"
