@@ -91,6 +91,21 @@ def command_line_train_keys() -> set[str]:
     return {k.split(".")[1] for k in keys if k.startswith("train.")}
 
 
+def method_params(cfg: DictConfig, typed: set[str]) -> dict:
+    """``cfg.method.params`` as a dict, less the keys of the method's own budget (``method.params.train.schedule``)
+    that the user typed as ``train.<key>`` (``typed``, :func:`command_line_train_keys`): what the user typed wins. The
+    budget's length is one setting, so a typed ``train.epochs`` or ``train.steps`` drops both of the schedule's
+    (``train.epochs=0``, an untrained row, is not overridden by a method's ``steps``)."""
+    params = OmegaConf.to_container(cfg.method.params, resolve=True)
+    schedule = params.get("train", {}).get("schedule") if isinstance(params.get("train"), dict) else None
+    length = typed & {"epochs", "steps"}
+    for key in sorted((typed | ({"epochs", "steps"} if length else set())) & set(schedule or {})):
+        by = key if key in typed else " / train.".join(sorted(length))
+        log.info("train.%s from the command line replaces method.params.train.schedule.%s", by, key)
+        schedule.pop(key)
+    return params
+
+
 def warn_untrained_shape(betas, train_cfg: dict, method_params: dict, method: str) -> list[int]:
     """Warn (and return the indices) when test ``betas`` (S,) leave the range ``method`` was trained on:
     ``method.params.train.beta_range`` (per component, U(-r, r)) if it sets one, else the training dataset's
@@ -303,11 +318,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     torch.set_num_threads(job_threads(cfg))
     torch.manual_seed(int(cfg.seed))
     method_cls = method_class(cfg)  # fail fast on an unknown method
-    params = OmegaConf.to_container(cfg.method.params, resolve=True)
-    schedule = params.get("train", {}).get("schedule") if isinstance(params.get("train"), dict) else None
-    for key in command_line_train_keys() & set(schedule or {}):  # what the user typed wins over a method's own budget
-        log.info("train.%s from the command line replaces method.params.train.schedule.%s", key, key)
-        schedule.pop(key)
+    params = method_params(cfg, command_line_train_keys())
     method = method_cls(params)  # and on a bad method.params key or value, before the scene and its reference are built
     stages = {}
     t = time.perf_counter()

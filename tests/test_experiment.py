@@ -687,3 +687,20 @@ def test_a_run_whose_reference_fails_keeps_its_own_metrics_and_says_why_it_has_n
     assert json.loads((tmp_path / "run" / "metrics.json").read_text())["reference_error"] == record["reference_error"]
     md = write_table([tmp_path], "runtime_vs_error", tmp_path / "t", command="pytest")[0].read_text()  # a table with the vertex error
     assert "- lbs on tshirt have no vertex error, their reference failed: reference simulation (vbd)" in md
+
+
+def test_what_the_user_types_as_train_keys_wins_over_a_method_s_own_budget():
+    """GAPS's train=cpu budget sets steps; a typed train.epochs=0 (an untrained row) drops it, so the method trains
+    nothing, instead of its 3,300 steps; a typed train.lr drops only the schedule's lr; untyped keys stay."""
+    from drapebench.experiment import method_params
+
+    cfg = _compose(["method=gaps", "train=cpu"])
+    schedule = OmegaConf.to_container(cfg.method.params.train.schedule)
+    assert {"steps", "lr", "grad_clip"} <= set(schedule)
+    untrained = method_params(cfg, {"epochs"})["train"]["schedule"]
+    assert "steps" not in untrained and untrained["lr"] == schedule["lr"]
+    assert "steps" not in method_params(cfg, {"steps"})["train"]["schedule"]
+    lr = method_params(cfg, {"lr"})["train"]["schedule"]
+    assert "lr" not in lr and lr["steps"] == schedule["steps"]
+    assert method_params(cfg, set())["train"]["schedule"] == schedule
+    assert method_params(_compose(["method=lbs"]), {"epochs"}) == OmegaConf.to_container(_compose(["method=lbs"]).method.params)
