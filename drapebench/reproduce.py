@@ -14,6 +14,10 @@ then writes the table from those runs and, at the end, ``claims.md`` over the ta
 row exists) into ``outputs/reproduce_quick/``, for a check that every table's pipeline runs, not for numbers; the
 benchmark tables (those with ``bench``), timed on their own scenes, are skipped.
 The full command writes into ``reports/`` (``--out`` elsewhere).
+
+``--jobs N`` runs N runs at once, each pinned to its share of the CPU cores (so that its automatic torch threads
+are that share, :func:`drapebench.experiment.job_threads`): the runs that load one model, or one reference set,
+go to one worker in their order (:func:`drapebench.reproduce_cost.groups`), so that no model is trained twice.
 """
 
 from __future__ import annotations
@@ -132,8 +136,9 @@ def finished(job: Job, at: str) -> bool:
     return done.get("overrides") == list(job.overrides) and done.get("commit") == at
 
 
-def run_job(job: Job, at: str) -> int:
-    """Run ``job`` in a fresh folder (an unfinished one is removed first) and stamp it; returns run.py's status."""
+def run_job(job: Job, at: str, cpus: set | None = None) -> int:
+    """Run ``job`` in a fresh folder (an unfinished one is removed first) and stamp it; returns run.py's status.
+    ``cpus``: the CPU cores its process is pinned to (None: this process's)."""
     if job.dir.exists():
         shutil.rmtree(job.dir)
     job.dir.parent.mkdir(parents=True, exist_ok=True)
@@ -141,7 +146,9 @@ def run_job(job: Job, at: str) -> int:
             f"hydra.run.dir={job.dir}"]  # fmt: skip
     log = job.dir.parent / f"{job.dir.name}.log"
     with open(log, "w") as f:
-        code = subprocess.run(argv, cwd=PROJECT_ROOT, stdout=f, stderr=subprocess.STDOUT, env=dict(os.environ, DRAPEBENCH_PROGRESS="0")).returncode
+        pin = None if cpus is None else (lambda: os.sched_setaffinity(0, cpus))
+        code = subprocess.run(argv, cwd=PROJECT_ROOT, stdout=f, stderr=subprocess.STDOUT, env=dict(os.environ, DRAPEBENCH_PROGRESS="0"),
+                              preexec_fn=pin).returncode  # fmt: skip
     if (job.dir / "metrics.json").exists() or (job.dir / "failed.json").exists():
         with atomic_write(job.dir / "reproduce.json", "w") as f:
             json.dump({"overrides": list(job.overrides), "commit": at, "experiment": job.sweep.experiment}, f)
@@ -152,19 +159,62 @@ def _clock(seconds: float) -> str:
     return f"{int(seconds // 3600)}:{int(seconds % 3600 // 60):02d}:{int(seconds % 60):02d}"
 
 
-def run_all(jobs: list, at: str, say=print) -> list:
+def worker_cpus(workers: int) -> list:
+    """The CPU cores of each of ``workers`` workers: this process's cores dealt out in turn (a worker gets at least
+    one; with more workers than cores, cores are shared). None per worker where affinity cannot be set."""
+    if not hasattr(os, "sched_getaffinity"):
+        return [None] * workers
+    cores = sorted(os.sched_getaffinity(0))
+    return [set(cores[k % len(cores) :: workers]) or {cores[k % len(cores)]} for k in range(workers)]
+
+
+def run_all(jobs: list, at: str, say=print, workers: int = 1, runner=run_job) -> list:
     """Run the unfinished ``jobs`` in order, saying per run its place, what it is and an estimate of the time left
-    (the mean time of the runs done so far in this call times the runs left); returns the jobs that did not finish."""
+    (the wall time so far per run finished in this call, times the runs left); ``workers`` > 1 runs that many at
+    once, each worker pinned to its cores (:func:`worker_cpus`) and taking the next group of runs that share a model
+    (:func:`drapebench.reproduce_cost.groups`) in order. Returns the jobs that did not finish."""
+    import threading
+    from concurrent.futures import ThreadPoolExecutor
+
     todo = [j for j in jobs if not finished(j, at)]
-    say(f"{len(jobs)} runs, {len(jobs) - len(todo)} already finished at {at[:12]}, {len(todo)} to run")
-    failed, start = [], time.monotonic()
-    for i, job in enumerate(todo, start=1):
-        left = "" if i == 1 else f", about {_clock((time.monotonic() - start) / (i - 1) * (len(todo) - i + 1))} left"
-        say(f"[{i}/{len(todo)}] {job.table}: {job.sweep.experiment} {' '.join(job.overrides)}{left}")
-        if run_job(job, at) != 0 and not finished(job, at):
-            failed.append(job)
-            say(f"    stopped without a result; its log: {job.dir.parent / (job.dir.name + '.log')}")
-    return failed
+    say(f"{len(jobs)} runs, {len(jobs) - len(todo)} already finished at {at[:12]}, {len(todo)} to run"
+        + (f", {workers} at once" if workers > 1 else ""))
+    failed, start, lock, counter = [], time.monotonic(), threading.Lock(), iter(range(1, len(todo) + 1))
+    done = [0]
+
+    def one(job: Job, cpus) -> None:
+        with lock:
+            i = next(counter)
+            left = "" if not done[0] else f", about {_clock((time.monotonic() - start) / done[0] * (len(todo) - i + 1))} left"
+            say(f"[{i}/{len(todo)}] {job.table}: {job.sweep.experiment} {' '.join(job.overrides)}{left}")
+        code = runner(job, at, cpus)
+        with lock:
+            done[0] += 1
+            if code != 0 and not finished(job, at):
+                failed.append(job)
+                say(f"    stopped without a result; its log: {job.dir.parent / (job.dir.name + '.log')}")
+
+    if workers <= 1:
+        for job in todo:
+            one(job, None)
+        return failed
+    from drapebench.reproduce_cost import groups
+
+    say("grouping the runs by the model they share ...")
+    queue, cpus = iter(groups(todo)), worker_cpus(workers)
+
+    def worker(k: int) -> None:
+        while True:
+            with lock:
+                group = next(queue, None)
+            if group is None:
+                return
+            for job in group:
+                one(job, cpus[k])
+
+    with ThreadPoolExecutor(workers) as pool:
+        list(pool.map(worker, range(workers)))
+    return [j for j in todo if j in failed]
 
 
 def write_tables(names: list, root: Path, out: Path, quick: bool = False, say=print) -> list:
@@ -203,6 +253,8 @@ def main(argv=None) -> int:
     parser.add_argument("--quick", action="store_true", help="every table's pipeline on a tiny scene, untrained, into outputs/reproduce_quick")
     parser.add_argument("--out", type=Path, help="where the tables go (default: reports/, or outputs/reproduce_quick/reports with --quick)")
     parser.add_argument("--runs", type=Path, help="where the runs go (default: outputs/reproduce, or outputs/reproduce_quick/runs)")
+    parser.add_argument("--jobs", type=int, default=1, help="runs at once, each pinned to its share of the CPU cores; the runs that share a "
+                        "model or a reference set run on one worker in turn (default 1)")
     parser.add_argument("--dry-run", action="store_true", help="list the runs and whether each has finished, and per method the trainings the unfinished ones need and how many are cached; run nothing")
     args = parser.parse_args(argv)
     unknown = [t for t in args.tables if t not in tables]
@@ -224,7 +276,9 @@ def main(argv=None) -> int:
               "checkpoint cache already (the time of each training: the README's budget table):")
         print("\n".join(summary(todo)))
         return 0
-    failed = run_all(jobs, at)
+    if args.jobs < 1:
+        parser.error(f"--jobs: at least 1, got {args.jobs}")
+    failed = run_all(jobs, at, workers=args.jobs)
     paths = write_tables([n for n in names if n in args.tables], root, out, args.quick)
     from drapebench.claims import write_claims
 

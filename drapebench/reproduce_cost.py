@@ -35,27 +35,53 @@ def training_identity(cfg, methods: dict | None = None) -> tuple | None:
             cfg.body.name, plain(cfg.material), int(cfg.seed), "" if method.generic else plain(cfg.garment))  # fmt: skip
 
 
-def tally(jobs: list) -> dict:
-    """Per method name (in the order the runs first name it): ``{"runs": n, "trainings": {identity: a composed run
-    config that needs it}}`` over ``jobs`` (:class:`drapebench.reproduce.Job`), each composed as its run composes it."""
+def _composed(jobs: list):
+    """(job, its composed run config) for each of ``jobs``, composing once per set of runs that differ only in keys
+    no training depends on (:data:`UNKEYED`), in the jobs' order."""
     from hydra import compose, initialize_config_dir
 
     from drapebench.cache import PROJECT_ROOT
     from drapebench.schema import register
 
     register()
-    out, methods = defaultdict(lambda: {"runs": 0, "trainings": {}}), {}
-    alike = defaultdict(int)  # runs differing only in what no checkpoint's key holds (the test motion, dtype) train alike
-    for job in jobs:
-        alike[(job.sweep.experiment, tuple(o for o in job.overrides if not o.lstrip("+").startswith(UNKEYED)))] += 1
+    configs = {}
     with initialize_config_dir(config_dir=str(PROJECT_ROOT / "conf"), version_base="1.3"):
-        for (experiment, overrides), n in alike.items():
-            cfg = compose("config", overrides=[f"experiment={experiment}", *overrides])
-            row = out[cfg.method.name]
-            row["runs"] += n
-            identity = training_identity(cfg, methods)
-            if identity is not None:
-                row["trainings"].setdefault(identity, cfg)
+        for job in jobs:
+            key = (job.sweep.experiment, tuple(o for o in job.overrides if not o.lstrip("+").startswith(UNKEYED)))
+            if key not in configs:
+                configs[key] = compose("config", overrides=[f"experiment={key[0]}", *key[1]])
+            yield job, configs[key]
+
+
+def groups(jobs: list) -> list:
+    """``jobs`` (:class:`drapebench.reproduce.Job`) in groups that must run one after another, in the order of each
+    group's first job: the runs of a method trained on reference drapes (``needs_reference``) by the reference set
+    they build (data preset, garment, body), the others by the training they load (:func:`training_identity`); a
+    run that trains nothing is a group of its own. Run at once, two groups never train one model twice."""
+    from omegaconf import OmegaConf
+
+    from drapebench.experiment import method_class
+
+    out, methods = {}, {}
+    for k, (job, cfg) in enumerate(_composed(jobs)):
+        identity = training_identity(cfg, methods)
+        if identity is not None and method_class(cfg).needs_reference:
+            identity = ("reference set", repr(OmegaConf.to_container(cfg.data, resolve=True)), repr(OmegaConf.to_container(cfg.garment, resolve=True)),
+                        cfg.body.name)  # fmt: skip
+        out.setdefault(("run", k) if identity is None else identity, []).append(job)
+    return list(out.values())
+
+
+def tally(jobs: list) -> dict:
+    """Per method name (in the order the runs first name it): ``{"runs": n, "trainings": {identity: a composed run
+    config that needs it}}`` over ``jobs`` (:class:`drapebench.reproduce.Job`), each composed as its run composes it."""
+    out, methods = defaultdict(lambda: {"runs": 0, "trainings": {}}), {}
+    for _, cfg in _composed(jobs):
+        row = out[cfg.method.name]
+        row["runs"] += 1
+        identity = training_identity(cfg, methods)
+        if identity is not None:
+            row["trainings"].setdefault(identity, cfg)
     return dict(out)
 
 

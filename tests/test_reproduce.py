@@ -1,6 +1,7 @@
 """One command regenerates every committed table: the table specs, the sweeps' expansion into runs, the quick
 pipeline end to end, and resuming where a stopped command left off."""
 
+import os
 import re
 from fnmatch import fnmatch
 from pathlib import Path
@@ -132,3 +133,60 @@ def test_the_cost_counts_a_cached_checkpoint_where_the_run_would_load_it():
     method = method_class(cfg)(OmegaConf.to_container(cfg.method.params, resolve=True))
     CHECKPOINTS.store(checkpoint_path(method, cfg, scene.garment, scene.body), lambda tmp: Path(tmp).write_bytes(b"model"))
     assert cached(configs) == 1
+
+
+def test_runs_that_share_a_model_or_a_reference_set_are_grouped_to_run_in_turn():
+    """gaps_table3 with 2 seeds: a group per (method, seed), its 3 test shapes in order; the untrained rows train nothing
+    (a group each); the VAE's runs on one garment share its reference set: one group over methods and seeds."""
+    from drapebench.reproduce_cost import groups
+
+    jobs = _jobs(Sweep("gaps_table3", ("seed=0,1",)))
+    found = groups(jobs)
+    assert len(found) == 4 and all(len(g) == 3 for g in found) and sorted(j.overrides for g in found for j in g) == sorted(j.overrides for j in jobs)
+    model = lambda j: tuple(o for o in j.overrides if o.startswith(("method=", "seed=")))  # noqa: E731
+    assert all(len({model(j) for j in g}) == 1 for g in found) and len({model(g[0]) for g in found}) == 4
+    assert all(g == [j for j in jobs if model(j) == model(g[0])] for g in found)  # in the sweep's order
+    (before,) = untrained("gaps_table3", ("gaps",))
+    assert [len(g) for g in groups(_jobs(before))] == [1, 1, 1]
+    vae = _jobs(Sweep("vae_table1", ("method=vae,vae_mean_code", "seed=0,1", "motion=kick", "motion.betas=[1.0,-1.0]")))
+    assert len(vae) == 4 and len(groups(vae)) == 1
+
+
+def test_run_all_with_two_workers_runs_each_group_in_turn_on_one_worker(tmp_path, monkeypatch):
+    """Two workers, each pinned to its own cores: a group's runs go in order on one worker, the groups spread over
+    both, a run that ends without a result is returned as failed."""
+    import json
+    import threading
+    import time
+
+    import drapebench.reproduce_cost as cost
+    from drapebench.reproduce import run_all, worker_cpus
+
+    jobs = [Job("t", Sweep("x"), (f"k={i}",), tmp_path / str(i)) for i in range(6)]
+    monkeypatch.setattr(cost, "groups", lambda todo: [todo[0:3], todo[3:5], todo[5:]])
+    ran = []
+
+    def runner(job, at, cpus):
+        ran.append((threading.get_ident(), job, frozenset(cpus) if cpus else None))
+        time.sleep(0.2)  # long enough for the other worker to take the next group
+        if job is jobs[4]:
+            return 1  # no result
+        job.dir.mkdir(parents=True)
+        (job.dir / "metrics.json").write_text("{}")
+        (job.dir / "reproduce.json").write_text(json.dumps({"overrides": list(job.overrides), "commit": "c"}))
+        return 0
+
+    failed = run_all(jobs, "c", say=lambda s: None, workers=2, runner=runner)
+    assert failed == [jobs[4]] and sorted(j.dir.name for _, j, _ in ran) == [str(i) for i in range(6)]
+    by_thread = {}
+    for thread, job, _ in ran:
+        by_thread.setdefault(thread, []).append(job)
+    assert len(by_thread) == 2  # both workers
+    assert all(len({c for t, _, c in ran if t == thread}) == 1 for thread in by_thread)  # each pinned to its cores
+    for group in (jobs[0:3], jobs[3:5]):  # each group on one worker, in order
+        (thread,) = {t for t, j, _ in ran if j in group}
+        assert [j for j in by_thread[thread] if j in group] == group
+    cpus = worker_cpus(2)
+    assert len(cpus) == 2 and all(c is None or len(c) >= 1 for c in cpus)
+    if cpus[0] is not None and len(os.sched_getaffinity(0)) >= 2:
+        assert not cpus[0] & cpus[1]  # two cores or more: each worker its own
