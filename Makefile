@@ -50,9 +50,11 @@ test-slow: $(BIN)/.installed-dev $(KERNELS)
 
 # Every committed table from its experiments (drapebench/table_specs.py), then reports/claims.md: hours on 2 cores;
 # finished runs are kept and skipped, so a stopped `make reports` goes on where it stopped.
-# ARGS="--tables gaps_table1" for some tables, ARGS=--quick for the pipeline on a tiny scene.
+# ARGS="--tables gaps_table1" for some tables, ARGS=--quick for the pipeline on a tiny scene; JOBS runs at once
+# (default: one per core, each pinned to its core; the runs that share a model go to one of them in turn).
+JOBS ?= $(shell nproc)
 reports: $(BIN)/.installed-dev $(KERNELS)
-	$(BIN)/python -m drapebench.reproduce $(ARGS)
+	$(BIN)/python -m drapebench.reproduce --jobs $(JOBS) $(ARGS)
 
 bench: venv
 	for b in benchmarks/bench_*.py; do $(BIN)/python $$b || exit 1; done
