@@ -23,6 +23,7 @@ go to one worker in their order (:func:`drapebench.reproduce_cost.groups`), so t
 from __future__ import annotations
 
 import argparse
+import contextlib
 import hashlib
 import json
 import os
@@ -146,9 +147,11 @@ def run_job(job: Job, at: str, cpus: set | None = None) -> int:
             f"hydra.run.dir={job.dir}"]  # fmt: skip
     log = job.dir.parent / f"{job.dir.name}.log"
     with open(log, "w") as f:
-        pin = None if cpus is None else (lambda: os.sched_setaffinity(0, cpus))
-        code = subprocess.run(argv, cwd=PROJECT_ROOT, stdout=f, stderr=subprocess.STDOUT, env=dict(os.environ, DRAPEBENCH_PROGRESS="0"),
-                              preexec_fn=pin).returncode  # fmt: skip
+        proc = subprocess.Popen(argv, cwd=PROJECT_ROOT, stdout=f, stderr=subprocess.STDOUT, env=dict(os.environ, DRAPEBENCH_PROGRESS="0"))
+        if cpus is not None:  # pinned right after exec, while the interpreter starts and before it makes a thread (not by
+            with contextlib.suppress(ProcessLookupError):  # preexec_fn: unsafe beside the other workers' threads); gone: nothing to pin
+                os.sched_setaffinity(proc.pid, cpus)
+        code = proc.wait()
     if (job.dir / "metrics.json").exists() or (job.dir / "failed.json").exists():
         with atomic_write(job.dir / "reproduce.json", "w") as f:
             json.dump({"overrides": list(job.overrides), "commit": at, "experiment": job.sweep.experiment}, f)
