@@ -111,12 +111,17 @@ def headline(record: dict, names=("eps_e", "eps_a", "eps_c", "vertex_error_mm", 
     return ", ".join(f"{n} {record[n]:.3g} {METRICS[n].unit}" for n in names if n in record)
 
 
+GENERATED = ("reports", "README.md")  # what `python -m drapebench.reproduce` writes into the tree: no run reads them
+
+
 def _head_commit() -> str:
-    """HEAD commit of the project now (with ``-dirty`` if the tree has changes), or ``unknown``."""
+    """HEAD commit of the project now (with ``-dirty`` if tracked files have changes, but for the tables and the
+    README's status that :data:`GENERATED` names: a regeneration that has written some tables still runs the commit's
+    code), or ``unknown``."""
     try:
         sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=PROJECT_ROOT, capture_output=True, text=True, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=PROJECT_ROOT,
-                               capture_output=True, text=True, check=True).stdout.strip()  # fmt: skip
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--", ".", *(f":(exclude){g}" for g in GENERATED)],
+                               cwd=PROJECT_ROOT, capture_output=True, text=True, check=True).stdout.strip()  # fmt: skip
         return sha + ("-dirty" if dirty else "")
     except (OSError, subprocess.CalledProcessError):
         return "unknown"

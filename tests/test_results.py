@@ -216,3 +216,26 @@ def test_a_method_s_declarations_are_not_part_of_its_code_fingerprint():
 
     assert makes_numbers("methods/gaps/method.py") and makes_numbers("methods/gaps/sub/metrics.py")
     assert not any(makes_numbers(f"methods/gaps/{m}.py") for m in ("metrics", "claims", "tables"))
+
+
+def test_tables_written_by_a_regeneration_do_not_make_its_runs_dirty(tmp_path, monkeypatch):
+    """reproduce writes reports/ and README.md's status into the tree: the runs after it still name the clean commit;
+    a changed source file makes them "-dirty"."""
+    import subprocess
+
+    from drapebench import results
+
+    git = lambda *a: subprocess.run(["git", "-C", str(tmp_path), *a], check=True, capture_output=True)  # noqa: E731
+    git("init", "-q")
+    (tmp_path / "reports").mkdir()
+    for name, text in (("code.py", "x = 1\n"), ("README.md", "status\n"), ("reports/t.md", "table\n")):
+        (tmp_path / name).write_text(text)
+    git("add", "-A")
+    git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", "c")
+    monkeypatch.setattr(results, "PROJECT_ROOT", tmp_path)
+    (tmp_path / "reports" / "t.md").write_text("regenerated\n")
+    (tmp_path / "README.md").write_text("new status\n")
+    clean = results._head_commit()
+    assert len(clean) == 40 and not clean.endswith("-dirty")
+    (tmp_path / "code.py").write_text("x = 2\n")
+    assert results._head_commit() == clean + "-dirty"
