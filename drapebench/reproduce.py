@@ -233,7 +233,8 @@ def write_tables(names: list, root: Path, out: Path, quick: bool = False, say=pr
             say(f"{name}: skipped by --quick (a benchmark, timed on its own scene: {s.command()})")
             continue
         if s.bench:
-            subprocess.run([sys.executable, *[a.format(out=target) for a in s.bench]], cwd=PROJECT_ROOT, check=True)
+            shown = target.relative_to(PROJECT_ROOT) if target.is_relative_to(PROJECT_ROOT) else target  # the footer's command: rerunnable anywhere
+            subprocess.run([sys.executable, *[a.format(out=shown) for a in s.bench]], cwd=PROJECT_ROOT, check=True)
             paths.append(target.with_suffix(".csv"))
             continue
         dirs = [j.dir for j in plan([s.sweeps_of or name], root, quick) if finished(j, commit())]

@@ -190,3 +190,16 @@ def test_run_all_with_two_workers_runs_each_group_in_turn_on_one_worker(tmp_path
     assert len(cpus) == 2 and all(c is None or len(c) >= 1 for c in cpus)
     if cpus[0] is not None and len(os.sched_getaffinity(0)) >= 2:
         assert not cpus[0] & cpus[1]  # two cores or more: each worker its own
+
+
+def test_a_benchmark_table_names_an_output_path_anyone_can_rerun(monkeypatch):
+    """A benchmark's table (its script writes it) is made with --out relative to the project, so that the command
+    its footer names runs in any checkout, not only in the one (or worktree) that made it."""
+    import subprocess
+
+    import drapebench.reproduce as reproduce
+
+    calls = []
+    monkeypatch.setattr(subprocess, "run", lambda argv, **kw: calls.append(argv))
+    reproduce.write_tables(["vae_table2"], Path("unused"), ROOT / "reports", say=lambda s: None)
+    assert len(calls) == 1 and "reports/vae_table2" in calls[0] and not any(str(ROOT) in a for a in calls[0][1:])
