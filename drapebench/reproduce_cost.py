@@ -57,14 +57,17 @@ def groups(jobs: list) -> list:
     """``jobs`` (:class:`drapebench.reproduce.Job`) in groups that must run one after another, in the order of each
     group's first job: the runs of a method trained on reference drapes (``needs_reference``) by the reference set
     they build (data preset, garment, body), the others by the training they load (:func:`training_identity`); a
-    run that trains nothing is a group of its own. Run at once, two groups never train one model twice."""
+    run that trains nothing, or whose training is in the checkpoint cache already (it only loads it), is a group of
+    its own. Run at once, two groups never train one model twice."""
     from omegaconf import OmegaConf
 
     from drapebench.experiment import method_class
 
-    out, methods = {}, {}
+    out, methods, scenes = {}, {}, {}
     for k, (job, cfg) in enumerate(_composed(jobs)):
         identity = training_identity(cfg, methods)
+        if identity is not None and _sealed(cfg, scenes):
+            identity = None
         if identity is not None and method_class(cfg).needs_reference:
             identity = ("reference set", repr(OmegaConf.to_container(cfg.data, resolve=True)), repr(OmegaConf.to_container(cfg.garment, resolve=True)),
                         cfg.body.name)  # fmt: skip
@@ -85,23 +88,28 @@ def tally(jobs: list) -> dict:
     return dict(out)
 
 
-def cached(configs) -> int:
-    """How many of the trainings that the composed run configs ``configs`` need have a sealed checkpoint in the cache
-    (the path :func:`drapebench.experiment.checkpoint_path` gives the run; each distinct scene is built once)."""
+def _sealed(cfg, scenes: dict) -> bool:
+    """Whether the training the composed run config ``cfg`` needs has a sealed checkpoint at the path the run itself
+    would load (:func:`drapebench.experiment.checkpoint_path`); ``scenes`` (scene key -> scene) builds each distinct
+    scene once."""
     from omegaconf import OmegaConf
 
     from drapebench.experiment import CHECKPOINTS, checkpoint_path, method_class
     from drapebench.scene import Scene
 
-    scenes, n = {}, 0
-    for cfg in configs:
-        key = repr([OmegaConf.to_container(cfg[k], resolve=True) for k in ("body", "garment", "motion")] + [str(cfg.dtype)])
-        if key not in scenes:
-            scenes[key] = Scene.from_config(cfg, device="cpu")
-        scene = scenes[key]
-        method = method_class(cfg)(OmegaConf.to_container(cfg.method.params, resolve=True))
-        n += CHECKPOINTS.sealed(checkpoint_path(method, cfg, scene.garment, scene.body))
-    return n
+    key = repr([OmegaConf.to_container(cfg[k], resolve=True) for k in ("body", "garment", "motion")] + [str(cfg.dtype)])
+    if key not in scenes:
+        scenes[key] = Scene.from_config(cfg, device="cpu")
+    scene = scenes[key]
+    method = method_class(cfg)(OmegaConf.to_container(cfg.method.params, resolve=True))
+    return CHECKPOINTS.sealed(checkpoint_path(method, cfg, scene.garment, scene.body))
+
+
+def cached(configs) -> int:
+    """How many of the trainings that the composed run configs ``configs`` need have a sealed checkpoint in the cache
+    (:func:`_sealed`)."""
+    scenes = {}
+    return sum(_sealed(cfg, scenes) for cfg in configs)
 
 
 def summary(jobs: list) -> list:

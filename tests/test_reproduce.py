@@ -135,11 +135,14 @@ def test_the_cost_counts_a_cached_checkpoint_where_the_run_would_load_it():
     assert cached(configs) == 1
 
 
-def test_runs_that_share_a_model_or_a_reference_set_are_grouped_to_run_in_turn():
+def test_runs_that_share_a_model_or_a_reference_set_are_grouped_to_run_in_turn(monkeypatch):
     """gaps_table3 with 2 seeds: a group per (method, seed), its 3 test shapes in order; the untrained rows train nothing
-    (a group each); the VAE's runs on one garment share its reference set: one group over methods and seeds."""
+    (a group each); the VAE's runs on one garment share its reference set: one group over methods and seeds; runs
+    whose training is in the checkpoint cache only load it: a group each."""
+    import drapebench.reproduce_cost as cost
     from drapebench.reproduce_cost import groups
 
+    monkeypatch.setattr(cost, "_sealed", lambda cfg, scenes: False)  # nothing trained yet, whatever this machine's cache holds
     jobs = _jobs(Sweep("gaps_table3", ("seed=0,1",)))
     found = groups(jobs)
     assert len(found) == 4 and all(len(g) == 3 for g in found) and sorted(j.overrides for g in found for j in g) == sorted(j.overrides for j in jobs)
@@ -150,6 +153,8 @@ def test_runs_that_share_a_model_or_a_reference_set_are_grouped_to_run_in_turn()
     assert [len(g) for g in groups(_jobs(before))] == [1, 1, 1]
     vae = _jobs(Sweep("vae_table1", ("method=vae,vae_mean_code", "seed=0,1", "motion=kick", "motion.betas=[1.0,-1.0]")))
     assert len(vae) == 4 and len(groups(vae)) == 1
+    monkeypatch.setattr(cost, "_sealed", lambda cfg, scenes: True)  # every training cached (cached() tests the path)
+    assert [len(g) for g in groups(vae)] == [1, 1, 1, 1] and [len(g) for g in groups(jobs)] == [1] * 12
 
 
 def test_run_all_with_two_workers_runs_each_group_in_turn_on_one_worker(tmp_path, monkeypatch):
