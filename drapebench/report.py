@@ -590,12 +590,15 @@ EVALUATION_LABELS = {
 }
 
 
-def evaluation_plot(dirs, path: Path, columns=tuple(EVALUATION_LABELS), title: str = "") -> Path:
+def evaluation_plot(dirs, path: Path, columns=tuple(EVALUATION_LABELS), title: str = "", command: str | None = None,
+                    methods: list[str] | None = None) -> Path:
     """Per-epoch evaluations of trained runs (``evaluations.csv`` beside each run's ``metrics.json``) against
-    the epoch: one colour per method, one line style per column of ``columns`` (percentages). Runs of one
-    method sharing a training seed (a checkpoint) count once; several seeds draw their mean and a band from
-    their minimum to their maximum. Written to ``path`` (PNG), the curves' numbers beside it (``path`` with
-    ``.csv``: method, epoch, quantity, mean / min / max over the seeds in %, seeds); returns the PNG's path."""
+    the epoch: one colour per method (``methods``, in their order; None: every method with evaluations), one line
+    style per column of ``columns`` (percentages). Runs of one method sharing a training seed (a checkpoint) count
+    once; several seeds draw their mean and a band from their minimum to their maximum. Written to ``path`` (PNG),
+    the curves' numbers beside it (``path`` with ``.csv``: per method and quantity, each epoch's mean ± sample std
+    over the seeds in %), its footer naming ``command`` (default: this module's command over ``dirs``); returns the
+    PNG's path."""
     from drapebench.table_file import write_csv
 
     import matplotlib
@@ -603,7 +606,7 @@ def evaluation_plot(dirs, path: Path, columns=tuple(EVALUATION_LABELS), title: s
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    df = collect(dirs)
+    df = only_methods(collect(dirs), methods)
     curves: dict[str, dict] = {}  # method -> training seed -> its evaluations
     for _, r in df.iterrows():
         csv = Path(r["run_dir"]) / "evaluations.csv"
@@ -633,7 +636,7 @@ def evaluation_plot(dirs, path: Path, columns=tuple(EVALUATION_LABELS), title: s
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3)
     scenes = ", ".join(sorted({f"{r['garment']} {r.get('body', '')}".strip() for _, r in df.iterrows()})) if "garment" in df else "unknown"
-    command = f"python -m drapebench.report {' '.join(map(str, dirs))} --evaluations"
+    command = command or f"python -m drapebench.report {' '.join(map(str, dirs))} --evaluations"
     wide = pd.DataFrame.from_dict(cells, orient="index").rename_axis("method")
     wide.columns = pd.MultiIndex.from_tuples(wide.columns, names=["quantity", "metric"])
     write_csv(Path(path).with_suffix(".csv"), [provenance(df, command), f"Per-epoch evaluations (evaluations.csv) of the runs; "

@@ -242,7 +242,8 @@ def write_tables(names: list, root: Path, out: Path, quick: bool = False, say=pr
             say(f"{name}: no finished runs, not written")
             continue
         if s.evaluations:
-            paths.append(evaluation_plot(dirs, target.with_suffix(".png"), title=s.what))
+            paths.append(evaluation_plot(dirs, target.with_suffix(".png"), title=s.what, command=s.command() + (" --quick" if quick else ""),
+                                         methods=list(s.methods) or None))  # fmt: skip
             continue
         paths += write_table(dirs, name, target, command=s.command() + (" --quick" if quick else ""),
                              methods=list(s.methods) or None, garments=list(s.garments) or None)  # fmt: skip

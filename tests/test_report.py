@@ -211,6 +211,11 @@ def test_evaluation_plot_draws_the_runs_per_epoch_evaluations(tmp_path, monkeypa
     assert curves.get(method, "validation reconstructions", "last epoch (%)").mean == 0.5 and curves.commits
     main([str(tmp_path / "runs"), "--evaluations", "--out", str(tmp_path / "fig4")])
     assert (tmp_path / "fig4.png").exists()
+    named = evaluation_plot([tmp_path / "runs"], tmp_path / "named.png", command="python -m drapebench.reproduce --tables fig4", methods=[method])
+    footer = named.with_suffix(".csv").read_text()
+    assert "Produced by `python -m drapebench.reproduce --tables fig4`" in footer and str(tmp_path) not in footer  # rerunnable anywhere
+    with pytest.raises(ValueError, match="no_such_method"):
+        evaluation_plot([tmp_path / "runs"], tmp_path / "none.png", methods=["no_such_method"])
     import json
 
     from drapebench import report
