@@ -16,8 +16,9 @@ benchmark tables (those with ``bench``), timed on their own scenes, are skipped.
 The full command writes into ``reports/`` (``--out`` elsewhere).
 
 ``--jobs N`` runs N runs at once, each pinned to its share of the CPU cores (so that its automatic torch threads
-are that share, :func:`drapebench.experiment.job_threads`): the runs that train one model, or build one reference set,
-go to one worker in their order (a run whose model is cached already, a group of its own) (:func:`drapebench.reproduce_cost.groups`), so that no model is trained twice.
+are that share, :func:`drapebench.experiment.job_threads`): the runs that train one model, or build one reference
+set, go to one worker in their order, so that no model is trained twice; a run whose model is cached only loads it
+and goes to any free worker (:func:`drapebench.reproduce_cost.groups`).
 """
 
 from __future__ import annotations
