@@ -27,6 +27,7 @@ from omegaconf import DictConfig, OmegaConf
 from drapebench.body.dataset import dataset_hash
 from drapebench.cache import PROJECT_ROOT, Cache, atomic_write, body_key, content_hash, forcing, write_json
 from drapebench.errors import DrapeFailed
+from drapebench.garments.factory import garment_label
 from drapebench.results import METRICS, environment, git_commit, headline
 from drapebench.scene import Scene
 from drapebench.schema import check_keys
@@ -292,7 +293,7 @@ def run(cfg: DictConfig, out_dir: str | Path | None = None) -> dict:
 
 def failure_record(cfg: DictConfig, err: BaseException) -> dict:
     """The ``failed.json`` record of a run of ``cfg`` that raised ``err``: the scene, the error and its message."""
-    return {"status": "failed", "method": cfg.method.name, "garment": cfg.garment.kind, "motion": cfg.motion.name,
+    return {"status": "failed", "method": cfg.method.name, "garment": garment_label(cfg.garment), "motion": cfg.motion.name,
             "body": cfg.body.name, "shape": shape_label(cfg.motion.betas), "dtype": getattr(cfg.dtype, "name", str(cfg.dtype)),
             "seed": int(cfg.seed), "train_seed": int(cfg.train.seed), "device": str(cfg.device), "error": type(err).__name__,
             "message": str(err), "experiment": cfg.experiment_name, "commit": git_commit()}  # fmt: skip
@@ -329,7 +330,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     body, material, seq, garment, dtype = scene.body, scene.material, scene.seq, scene.garment, scene.dtype
     run_body = body if device.type == "cpu" else load_body(cfg.body.name, dtype=dtype, device=device)
     stages["scene_s"] = time.perf_counter() - t
-    log.info("scene: %s (%d vertices) on %s, %s (%d frames) in %.1f s", garment.kind, garment.n_vertices, body.name, seq.name,
+    log.info("scene: %s (%d vertices) on %s, %s (%d frames) in %.1f s", garment_label(cfg.garment), garment.n_vertices, body.name, seq.name,
              seq.n_frames, stages["scene_s"])  # fmt: skip
 
     t = time.perf_counter()
@@ -354,7 +355,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     from drapebench.drape_stream import stream_drape
     from drapebench.export import input_hashes
 
-    attrs = {"method": cfg.method.name, "garment": garment.kind, "motion": seq.name, "body": cfg.body.name, "fps": seq.fps,
+    attrs = {"method": cfg.method.name, "garment": garment_label(cfg.garment), "motion": seq.name, "body": cfg.body.name, "fps": seq.fps,
              "n_transition": seq.n_transition, "inputs": json.dumps(input_hashes(garment, seq, body))}  # inputs: what an export checks  # fmt: skip
     streamed = stream_drape(method, garment, seq, out / "prediction.h5", int(cfg.chunk_frames), cfg.method.name, attrs)
     on_device, result, drape_s = streamed.on_device, streamed.result, streamed.drape_s
@@ -366,7 +367,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     summary.update(method.diagnostics(garment, seq, on_device))  # method-specific measurements (declared in methods/<name>/metrics.py)
     stages["eval_s"] = time.perf_counter() - t
     record = {
-        "method": cfg.method.name, "garment": cfg.garment.kind, "motion": cfg.motion.name, "body": cfg.body.name,
+        "method": cfg.method.name, "garment": garment_label(cfg.garment), "motion": cfg.motion.name, "body": cfg.body.name,
         "shape": shape_label(seq.betas), "dtype": str(dtype).removeprefix("torch."), "reference": cfg.reference.solver or "none", "n_vertices": garment.n_vertices, "n_frames": seq.n_frames, **summary,
         "ms_per_frame": drape_ms_per_frame(result.timings_ms, drape_s, seq.n_frames), "train_s": train_s,
         "setup_s": result.timings_ms.get("setup", 0.0) / 1e3,
@@ -378,7 +379,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
         from drapebench.export import Drape, export_drape
 
         t = time.perf_counter()
-        label = f"{cfg.method.name} {garment.kind} on {seq.name} ({cfg.body.name})"
+        label = f"{cfg.method.name} {garment_label(cfg.garment)} on {seq.name} ({cfg.body.name})"
         paths = export_drape(out, Drape.from_scene(result.vertices[:], garment, seq, body, label), export)
         stages["export_s"] = time.perf_counter() - t
         log.info("exported the drape (%s): %d file(s) in %s", export, len(paths), paths[0].parent)
@@ -398,7 +399,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
                              "it cannot play the same motion; choose a body of the same skeleton (anny, anny_lowres)")  # fmt: skip
         record_drape(out / "drape.rrd", seq.vertices(shown), shown.faces, vertices, garment.topology, seq.fps,
                      penetrating=inside, reference=reference, stages=result.extras, metrics=frames,
-                     name=f"{cfg.method.name}_{garment.kind}_{seq.name}", in_place=seq.trans, displaced_from=method.displaced_from)  # fmt: skip
+                     name=f"{cfg.method.name}_{garment_label(cfg.garment)}_{seq.name}", in_place=seq.trans, displaced_from=method.displaced_from)  # fmt: skip
         stages["viz_s"] = time.perf_counter() - t
     stages["total_s"] = time.perf_counter() - t_start
     record.update(stages)

@@ -37,6 +37,7 @@ import numpy as np
 import torch
 
 from drapebench.cache import atomic_write, body_key, content_hash
+from drapebench.garments.factory import garment_label
 
 log = logging.getLogger("drapebench")
 
@@ -128,7 +129,7 @@ def drape_from_run(run_dir: str | Path) -> Drape:
         if changed:
             given = {"body": f"body.name={scene.cfg.body.name}", "motion": f"motion={scene.cfg.motion.name}" + (
                 f" (motion.path={scene.cfg.motion.path})" if scene.cfg.motion.get("path") else ""),
-                "garment": f"garment={scene.cfg.garment.kind}" + (f" (garment.path={scene.cfg.garment.path})" if scene.cfg.garment.get("path") else "")}  # fmt: skip
+                "garment": f"garment={garment_label(scene.cfg.garment)}" + (f" (garment.path={scene.cfg.garment.path})" if scene.cfg.garment.get("path") else "")}  # fmt: skip
             raise RunInputsChanged(f"{run_dir}: the {' and '.join(changed)} of this run changed since it ran "
                                    f"({'; '.join(given[k] for k in changed)}): its drape no longer belongs to them. Put the "
                                    "original file(s) back, or run it again with export=usd (or obj, pc2)")  # fmt: skip

@@ -36,6 +36,7 @@ class BodyConf:
 @dataclass
 class GarmentConf:
     kind: str = "tshirt"  # a parametric kind, or obj: a user's file (conf/garment/obj.yaml)
+    name: Optional[str] = None  # the garment's name in run records, tables and recordings (None: its kind)
     seed: int = 0
     params: Dict[str, Any] = field(default_factory=dict)
     path: Optional[str] = None  # garment=obj: the .obj/.ply file (metres, on the rest-pose body)

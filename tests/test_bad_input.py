@@ -39,7 +39,7 @@ def _compose(overrides):
 # ---------------------------------------------------------------- config keys (issue point 7)
 @pytest.mark.parametrize(
     "override, named, listed",
-    [("+garment.obj=my.obj", "'garment.obj'", "'garment.kind', 'garment.params', 'garment.path', 'garment.pins', 'garment.seed'"),
+    [("+garment.obj=my.obj", "'garment.obj'", "'garment.kind', 'garment.name', 'garment.params', 'garment.path', 'garment.pins', 'garment.seed'"),
      ("+garmnet=skirt", "did you mean 'garment'", "'garment'"), ("+motion.foo=1", "'motion.foo'", "'motion.betas', 'motion.fps'")],
 )  # fmt: skip
 def test_a_key_added_with_plus_that_nothing_reads_fails_naming_it_and_the_valid_keys(override, named, listed, tmp_path):

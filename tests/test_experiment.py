@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 import torch
+import yaml
 from hydra import compose, initialize_config_dir
 from hydra.errors import ConfigCompositionException
 from omegaconf import OmegaConf
@@ -49,12 +50,20 @@ def test_single_run_writes_every_output(tmp_path):
 
 def test_multirun_writes_a_summary_row_per_job(tmp_path):
     sweep = tmp_path / "sweep"
-    p = run_py(["-m", *FAST, "garment=tshirt,skirt", "viz=none", f"hydra.sweep.dir={sweep}"], tmp_path)
+    p = run_py(["-m", *FAST, "garment=tshirt,skirt_flared", "viz=none", f"hydra.sweep.dir={sweep}"], tmp_path)
     assert p.returncode == 0, p.stderr[-3000:]
     lines = (sweep / "summary.csv").read_text().strip().splitlines()
     assert len(lines) == 3 and lines[0].startswith("method,garment")
-    assert {ln.split(",")[1] for ln in lines[1:]} == {"tshirt", "skirt"}
+    assert {ln.split(",")[1] for ln in lines[1:]} == {"tshirt", "skirt_flared"}  # a skirt config is not "skirt"
     assert (sweep / "summary.md").exists()
+
+
+def test_every_garment_config_has_a_name_of_its_own():
+    """Two garment configs of one kind (skirt, skirt_flared) would share a table row under the kind's name."""
+    from drapebench.garments import garment_label
+
+    labels = {p.stem: garment_label(yaml.safe_load(p.read_text())) for p in (ROOT / "conf" / "garment").glob("*.yaml")}
+    assert all(label == stem for stem, label in labels.items()), labels
 
 
 def _compose(overrides):

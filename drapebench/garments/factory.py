@@ -248,6 +248,12 @@ def garment_from_config(g: dict, body, sequence_betas=None) -> Garment:
                         **g.get("params", {}))  # fmt: skip
 
 
+def garment_label(g) -> str:
+    """The name a config's ``garment`` node goes by in run records, tables and recordings: its ``name`` (a config
+    that builds a kind with other parameters, e.g. ``skirt_flared``), else its ``kind``."""
+    return g.get("name") or g["kind"]
+
+
 def _garment_betas(betas, sequence_betas):
     """The body shape (list of floats, or None = mean) a config's ``garment.betas`` names."""
     if betas is None:
