@@ -330,13 +330,16 @@ def provenance(df: pd.DataFrame, command: str) -> str:
 
 
 def scene(df: pd.DataFrame) -> str:
-    """One line naming the garments, bodies, motions and reference drapes of the runs behind a table."""
+    """One line naming the garments, bodies and their shapes ("mean", "b0=-1,b1=1.5": the nonzero betas), motions and
+    reference drapes of the runs behind a table."""
 
     def names(col: str, missing: str = "not recorded") -> str:
         return ", ".join(dict.fromkeys(map(str, df[col].dropna()))) if col in df and df[col].notna().any() else missing
 
     ref = names("reference", "vbd or style3d (not recorded)" if df.get("vertex_error_mm", pd.Series(dtype=float)).notna().any() else "none")
-    return f"Scene: garments {names('garment')}; body {names('body')}; motions {names('motion')}; reference drape {ref}."
+    shapes = list(dict.fromkeys(map(str, df["shape"].dropna()))) if "shape" in df else []
+    shape = f" ({'shapes' if len(shapes) > 1 else 'shape'} {' / '.join(shapes)})" if shapes else ""
+    return f"Scene: garments {names('garment')}; body {names('body')}{shape}; motions {names('motion')}; reference drape {ref}."
 
 
 MAX_MARKDOWN_COLUMNS = 12  # a wider grouped table is written as one table per group

@@ -506,3 +506,11 @@ def test_loss_gap_closed_is_the_share_of_the_untrained_to_optimum_gap(tmp_path):
     assert np.isnan(gap[2]) and np.isnan(gap[3])  # no optimum of that scene / of that loss (gaps_kext1_optimum): no column value
     md = write_table([tmp_path], "gaps_heldout_tshirt", tmp_path / "h")[0].read_text()
     assert "gap closed (%)" in md and "66.7" in md
+
+
+def test_the_scene_line_names_the_body_shapes_of_the_runs():
+    from drapebench.report import scene
+
+    df = pd.DataFrame({"garment": ["tshirt", "tshirt"], "body": ["anny"] * 2, "shape": ["mean", "b0=-1,b1=1.5"], "motion": ["kick"] * 2})
+    assert scene(df) == "Scene: garments tshirt; body anny (shapes mean / b0=-1,b1=1.5); motions kick; reference drape none."
+    assert "(shape b0=-1,b1=1.5);" in scene(df.iloc[1:])
