@@ -330,7 +330,8 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     body, material, seq, garment, dtype = scene.body, scene.material, scene.seq, scene.garment, scene.dtype
     run_body = body if device.type == "cpu" else load_body(cfg.body.name, dtype=dtype, device=device)
     stages["scene_s"] = time.perf_counter() - t
-    log.info("scene: %s (%d vertices) on %s, %s (%d frames) in %.1f s", garment_label(cfg.garment), garment.n_vertices, body.name, seq.name,
+    garment_name = garment_label(cfg.garment)  # the name its record, recording and export go by
+    log.info("scene: %s (%d vertices) on %s, %s (%d frames) in %.1f s", garment_name, garment.n_vertices, body.name, seq.name,
              seq.n_frames, stages["scene_s"])  # fmt: skip
 
     t = time.perf_counter()
@@ -355,7 +356,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     from drapebench.drape_stream import stream_drape
     from drapebench.export import input_hashes
 
-    attrs = {"method": cfg.method.name, "garment": garment_label(cfg.garment), "motion": seq.name, "body": cfg.body.name, "fps": seq.fps,
+    attrs = {"method": cfg.method.name, "garment": garment_name, "motion": seq.name, "body": cfg.body.name, "fps": seq.fps,
              "n_transition": seq.n_transition, "inputs": json.dumps(input_hashes(garment, seq, body))}  # inputs: what an export checks  # fmt: skip
     streamed = stream_drape(method, garment, seq, out / "prediction.h5", int(cfg.chunk_frames), cfg.method.name, attrs)
     on_device, result, drape_s = streamed.on_device, streamed.result, streamed.drape_s
@@ -367,7 +368,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     summary.update(method.diagnostics(garment, seq, on_device))  # method-specific measurements (declared in methods/<name>/metrics.py)
     stages["eval_s"] = time.perf_counter() - t
     record = {
-        "method": cfg.method.name, "garment": garment_label(cfg.garment), "motion": cfg.motion.name, "body": cfg.body.name,
+        "method": cfg.method.name, "garment": garment_name, "motion": cfg.motion.name, "body": cfg.body.name,
         "shape": shape_label(seq.betas), "dtype": str(dtype).removeprefix("torch."), "reference": cfg.reference.solver or "none", "n_vertices": garment.n_vertices, "n_frames": seq.n_frames, **summary,
         "ms_per_frame": drape_ms_per_frame(result.timings_ms, drape_s, seq.n_frames), "train_s": train_s,
         "setup_s": result.timings_ms.get("setup", 0.0) / 1e3,
@@ -379,7 +380,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
         from drapebench.export import Drape, export_drape
 
         t = time.perf_counter()
-        label = f"{cfg.method.name} {garment_label(cfg.garment)} on {seq.name} ({cfg.body.name})"
+        label = f"{cfg.method.name} {garment_name} on {seq.name} ({cfg.body.name})"
         paths = export_drape(out, Drape.from_scene(result.vertices[:], garment, seq, body, label), export)
         stages["export_s"] = time.perf_counter() - t
         log.info("exported the drape (%s): %d file(s) in %s", export, len(paths), paths[0].parent)
@@ -399,7 +400,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
                              "it cannot play the same motion; choose a body of the same skeleton (anny, anny_lowres)")  # fmt: skip
         record_drape(out / "drape.rrd", seq.vertices(shown), shown.faces, vertices, garment.topology, seq.fps,
                      penetrating=inside, reference=reference, stages=result.extras, metrics=frames,
-                     name=f"{cfg.method.name}_{garment_label(cfg.garment)}_{seq.name}", in_place=seq.trans, displaced_from=method.displaced_from)  # fmt: skip
+                     name=f"{cfg.method.name}_{garment_name}_{seq.name}", in_place=seq.trans, displaced_from=method.displaced_from)  # fmt: skip
         stages["viz_s"] = time.perf_counter() - t
     stages["total_s"] = time.perf_counter() - t_start
     record.update(stages)
