@@ -130,7 +130,11 @@ def commit() -> str:
 
 
 def finished(job: Job, at: str) -> bool:
-    """Whether ``job`` has run to an end (results or a recorded failure) with the same overrides at commit ``at``."""
+    """Whether ``job`` has run to an end (results or a recorded failure) with the same overrides at commit ``at``.
+    Code no commit names (``at`` "unknown" or ``<sha>-dirty``: uncommitted changes, which may differ from one
+    sitting to the next under the same label) has finished nothing."""
+    if at == "unknown" or at.endswith("-dirty"):
+        return False
     stamp = job.dir / "reproduce.json"
     if not stamp.exists() or not ((job.dir / "metrics.json").exists() or (job.dir / "failed.json").exists()):
         return False
@@ -181,7 +185,7 @@ def run_all(jobs: list, at: str, say=print, workers: int = 1, runner=run_job) ->
     from concurrent.futures import ThreadPoolExecutor
 
     todo = [j for j in jobs if not finished(j, at)]
-    say(f"{len(jobs)} runs, {len(jobs) - len(todo)} already finished at {at[:12]}, {len(todo)} to run"
+    say(f"{len(jobs)} runs, {len(jobs) - len(todo)} already finished at {at[:12] + ('-dirty: uncommitted code, nothing counts as finished' if at.endswith('-dirty') else '')}, {len(todo)} to run"
         + (f", {workers} at once" if workers > 1 else ""))
     failed, start, lock, counter = [], time.monotonic(), threading.Lock(), iter(range(1, len(todo) + 1))
     done = [0]

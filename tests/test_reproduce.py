@@ -1,6 +1,7 @@
 """One command regenerates every committed table: the table specs, the sweeps' expansion into runs, the quick
 pipeline end to end, and resuming where a stopped command left off."""
 
+import json
 import os
 import re
 from fnmatch import fnmatch
@@ -9,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from drapebench.claims_catalogue import claims
+from drapebench import reproduce
 from drapebench.reproduce import Job, expand, finished, main, plan
 from drapebench.reproduce_cost import summary, tally
 from drapebench.table_file import read_csv, verified_text
@@ -56,8 +58,9 @@ def test_every_committed_table_has_one_spec_and_no_command_lives_elsewhere():
         assert not re.search(r"^#.*python (run\.py|-m drapebench\.report)", y.read_text(), re.M), y.name
 
 
-def test_quick_writes_a_table_and_claims_and_a_restart_reruns_nothing(tmp_path, capsys):
+def test_quick_writes_a_table_and_claims_and_a_restart_reruns_nothing(tmp_path, capsys, monkeypatch):
     """The fast suite runs one table's whole pipeline (lbs, one run); the slow test below runs every table's."""
+    monkeypatch.setattr(reproduce, "commit", lambda: "0" * 40)  # a committed tree, whatever this checkout's state
     args = ["--quick", "--tables", "baseline", "--runs", str(tmp_path / "runs"), "--out", str(tmp_path / "out")]
     assert main(args) == 0
     said = capsys.readouterr().out
@@ -69,6 +72,16 @@ def test_quick_writes_a_table_and_claims_and_a_restart_reruns_nothing(tmp_path, 
     assert main(args) == 0 and "1 runs, 1 already finished" in capsys.readouterr().out  # resumed: nothing reruns
     (job.dir / "reproduce.json").write_text('{"overrides": [], "commit": "other"}')  # another config or commit
     assert not finished(job, "other") and main([*args, "--dry-run"]) == 0 and "todo  baseline" in capsys.readouterr().out
+
+
+def test_runs_on_uncommitted_or_unknown_code_never_count_as_finished(tmp_path):
+    """Two sittings on different uncommitted edits carry the same ``<sha>-dirty`` label: neither may skip the other's runs."""
+    (job,) = plan(["baseline"], tmp_path / "runs", quick=True)
+    job.dir.mkdir(parents=True)
+    (job.dir / "metrics.json").write_text("{}")
+    for at in ("a" * 40, "a" * 40 + "-dirty", "unknown"):
+        (job.dir / "reproduce.json").write_text(json.dumps({"overrides": list(job.overrides), "commit": at}))
+        assert finished(job, at) == (at == "a" * 40)
 
 
 @pytest.mark.slow
