@@ -134,17 +134,18 @@ def fingerprint(impl: str, commit: str | None = None) -> str:
     return h.hexdigest()[:12]
 
 
-def stale_rows(rows, row_commits: dict, table_commits, code: dict | None = None) -> dict:
+def stale_rows(rows, row_commits: dict, table_commits, code: dict | None = None, owner: str | None = None) -> dict:
     """{row: why} for the rows of ``rows`` that are stale: from another commit than the newest of
     ``table_commits``, from a commit git does not know, or run by code whose :func:`fingerprint` differs from
     ``code`` ({impl: fingerprint}, the code the verdicts are judged against; default: the working tree's).
-    ``row_commits``: {row: [commits]}; a row missing from it ran at the table's commits."""
+    ``row_commits``: {row: [commits]}; a row missing from it ran at the table's commits. ``owner``: the
+    implementation of the rows that name no method config (a benchmark's garment rows; :func:`table_specs.owner`)."""
     table_commit = newest(table_commits)
     out = {}
     for row in rows:
         commits = row_commits.get(row, list(table_commits))
         full = [known(c) for c in commits]
-        impl = implementation(row)
+        impl = implementation(row) or owner
         if not commits:
             out[row] = "its table names no commit its runs were made at"
         elif None in full:

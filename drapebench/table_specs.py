@@ -92,6 +92,17 @@ def specs() -> dict[str, TableSpec]:
     return out
 
 
+def owner(name: str) -> str | None:
+    """The implementation folder (``methods/<folder>``) of the method package that declares table ``name`` (its
+    ``tables.py``; a ``_gpu`` twin is its CPU table's), or None for the suite's own tables: the code behind a table
+    whose rows are not named by methods (a benchmark's rows are garments)."""
+    from drapebench.plugins import declared
+
+    base = name.removesuffix("_gpu")
+    return next((package.rpartition(".")[2] for package, tables in declared("tables", "TABLES")
+                 if any(t.name == base for t in tables)), None)  # fmt: skip
+
+
 def spec(name: str) -> TableSpec:
     """The spec of table ``name``; KeyError naming the tables when there is none."""
     found = specs()

@@ -86,6 +86,16 @@ def test_a_level_the_control_also_meets_is_scene_determined(tmp_path):
                                         control=("gaps_untrained",)), t).verdict) == "holds, control not run"  # fmt: skip
 
 
+def test_a_control_that_meets_a_case_on_its_means_credits_the_scene(tmp_path):
+    """gensim_t1's case: lbs 0.075 under its bound (under the floor) is no evidence that the control fails."""
+    level = Claim("l", "P", "r low", "-", "level", table="t", metrics=("m",), row="r", bound=0.2, control=("lbs",))
+    t = _table(tmp_path, {"r": ["0.05 ± 0.01 (n=3)", "0.06 ± 0.01 (n=3)"], "lbs": ["0.19 ± 0.05 (n=3)", "0.1"]}, name="t")
+    j = evaluate(level, t)  # lbs's band crosses the bound on a, and it holds b
+    assert verdict_class(j.verdict) == "scene-determined" and j.control == "lbs holds 1/2, meets on its means 1"
+    t = _table(tmp_path, {"r": ["0.05 ± 0.01 (n=3)", "0.06 ± 0.01 (n=3)"], "lbs": ["0.3 ± 0.05 (n=3)", "0.5"]}, name="t")
+    assert evaluate(level, t).verdict == "reproduced"
+
+
 def test_an_order_the_control_also_meets_credits_the_scene(tmp_path):
     """gaps_t3's case: the row without the term grows with the body as much: the body, not the term."""
     grows = Claim("g", "P", "b above a", "-", "order_groups", table="t", metrics=("m",), row="r", greater=[("b", "a")],
@@ -132,6 +142,12 @@ def test_a_row_from_another_commit_or_changed_code_makes_the_claim_stale(tmp_pat
     t = _table(tmp_path, {"lbs": ["1", "2"]})
     assert evaluate(level, t).verdict == "holds, one seed"
     assert evaluate(level, t, code={"lbs": "000000000000"}).verdict == "stale: holds, one seed"
+    # a benchmark's rows are garments, not methods: its code is the method package that declares the table
+    bench = Claim("b", "P", "tshirt fast", "-", "level", table="vae_table2", metrics=("m",), row="tshirt", bound=9, control_why="test")
+    t = _table(tmp_path, {"tshirt": ["1", "2"]}, name="vae_table2")
+    assert evaluate(bench, t).verdict == "holds, one seed"
+    j = evaluate(bench, t, code={"vae": "000000000000"})
+    assert j.verdict == "stale: holds, one seed" and "methods/vae" in j.stale["tshirt"]
 
 
 def test_within_compares_each_group_with_the_reference_group(tmp_path):
