@@ -162,8 +162,10 @@ def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir
     (not for a generic method) + the body it trains on (``method.trained_body``) + material) matches. ``log_dir`` (passed to ``fit`` as the train config's ``log_dir``
     entry, for live logs) gets the fit's ``losses.csv`` (per step) and, when the method evaluates per epoch,
     ``evaluations.csv``, the same from a fresh fit or a loaded checkpoint. Returns the training time (s), the
-    checkpoint's path and how its training stopped ("done"; "clock": its lr decayed by ``train.max_minutes``' clock;
-    "time": cut by it; the last two warned again on every load); a method with nothing learned: its fit's time, None, None."""
+    checkpoint's path, how its training stopped ("done"; "clock": its lr decayed by ``train.max_minutes``' clock;
+    "time": cut by it; the last two warned again on every load) and the commit whose code trained it (the key holds
+    the configuration, not the code; "unrecorded" for a checkpoint stored before it was recorded); a method with
+    nothing learned: its fit's time, None, None, None."""
     path = checkpoint_path(method, cfg, garment, data.body, train_cfg)
     state = CHECKPOINTS.load(path, partial(torch.load, map_location="cpu", weights_only=False), force=bool(cfg.force))
     if state is not None:
@@ -178,16 +180,16 @@ def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir
         elif stopped == "clock":
             log.warning("checkpoint %s ran every step, but its learning rate decayed by train.max_minutes' clock ahead of the "
                         "steps: its model depends on the speed of the machine that trained it; force=true retrains it", path.name)  # fmt: skip
-        return state["train_s"], str(path), stopped
+        return state["train_s"], str(path), stopped, state.get("commit", "unrecorded")
     report = method.fit(data, train_cfg if log_dir is None else {**train_cfg, "log_dir": str(log_dir)})
     _write_fit_logs(log_dir, report.history, report.evaluations)
     state = method.state_dict()
     if not state:
-        return report.train_s, None, None
+        return report.train_s, None, None, None
     CHECKPOINTS.store(path, lambda tmp: torch.save({"method": state, "train_s": report.train_s, "history": report.history,
                                                     "evaluations": report.evaluations, "stopped": report.stopped,
-                                                    "n_steps": report.n_steps}, tmp))  # fmt: skip
-    return report.train_s, str(path), report.stopped
+                                                    "n_steps": report.n_steps, "commit": git_commit()}, tmp))  # fmt: skip
+    return report.train_s, str(path), report.stopped, git_commit()
 
 
 def _write_fit_logs(log_dir: Path | None, history: list[dict], evaluations: list[dict]) -> None:
@@ -348,7 +350,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
 
     data = scene.train_data(method, run_body)
     t = time.perf_counter()
-    train_s, ckpt, train_stopped = _checkpoint(method, cfg, garment, data, train_cfg, log_dir=out)
+    train_s, ckpt, train_stopped, trained_at = _checkpoint(method, cfg, garment, data, train_cfg, log_dir=out)
     stages["fit_s"] = time.perf_counter() - t
     if ckpt is not None:
         warn_untrained_shape(seq.betas, train_cfg, OmegaConf.to_container(cfg.method.params, resolve=True), cfg.method.name)
@@ -374,7 +376,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
         "setup_s": result.timings_ms.get("setup", 0.0) / 1e3,
         **{f"ms_{k}": v / seq.n_frames for k, v in result.timings_ms.items() if k != "setup"},
         "seed": int(cfg.seed), "train_seed": int(cfg.train.seed), "device": str(cfg.device), "experiment": cfg.experiment_name, "checkpoint": ckpt, "commit": git_commit(),
-        **({"train_stopped": train_stopped} if train_stopped else {}), **({"reference_error": reference_error} if reference_error else {}),
+        **({"train_stopped": train_stopped} if train_stopped else {}), **({"trained_at": trained_at} if trained_at else {}), **({"reference_error": reference_error} if reference_error else {}),
     }  # fmt: skip
     if export != "none":
         from drapebench.export import Drape, export_drape

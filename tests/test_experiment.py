@@ -148,6 +148,7 @@ def test_gaps_optimum_composes_with_gaps_loss_and_its_solver_settings():
 
 def test_training_writes_losses_and_evaluations_csv_into_the_run_directory_and_a_loaded_checkpoint_too(tmp_path, monkeypatch, body_lowres):
     from drapebench.experiment import _checkpoint
+    from drapebench.results import git_commit
     from methods.base import FitReport
 
     monkeypatch.setenv("DRAPEBENCH_DATA", str(tmp_path / "data"))
@@ -177,7 +178,7 @@ def test_training_writes_losses_and_evaluations_csv_into_the_run_directory_and_a
     train_cfg = {**OmegaConf.to_container(cfg.train, resolve=True), "dataset": None}
     for run_dir in (tmp_path / "a", tmp_path / "b"):  # a rerun in a new run directory loads the checkpoint
         run_dir.mkdir()
-        _checkpoint(Learned(), cfg, garment, data, train_cfg, log_dir=run_dir)
+        assert _checkpoint(Learned(), cfg, garment, data, train_cfg, log_dir=run_dir)[3] == git_commit()  # the code that trained it
         assert (run_dir / "losses.csv").read_text().splitlines() == ["step,loss", "1,0.5"]
         assert (run_dir / "evaluations.csv").read_text().splitlines() == ["epoch,step,colliding", "0,1,2.0"]
     assert len(Learned.fits) == 1 and Learned.fits[0]["log_dir"] == str(tmp_path / "a")
