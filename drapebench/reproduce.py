@@ -227,7 +227,8 @@ def run_all(jobs: list, at: str, say=print, workers: int = 1, runner=run_job) ->
 
 def write_tables(names: list, root: Path, out: Path, quick: bool = False, say=print) -> list:
     """Write each table of ``names`` into ``out`` from its runs under ``root`` (a benchmark's table: run its
-    script, which ``quick`` skips: it is timed on its own scene); returns the paths written."""
+    script, which ``quick`` skips: it is timed on its own scene), only once every run it plans has a result or a
+    recorded failure at this commit; returns the paths written."""
     from drapebench.report import evaluation_plot, write_table
 
     paths = []
@@ -242,9 +243,11 @@ def write_tables(names: list, root: Path, out: Path, quick: bool = False, say=pr
             subprocess.run([sys.executable, *[a.format(out=shown) for a in s.bench]], cwd=PROJECT_ROOT, check=True)
             paths.append(target.with_suffix(".csv"))
             continue
-        dirs = [j.dir for j in plan([s.sweeps_of or name], root, quick) if finished(j, commit())]
-        if not dirs:
-            say(f"{name}: no finished runs, not written")
+        planned = plan([s.sweeps_of or name], root, quick)
+        dirs = [j.dir for j in planned if finished(j, commit())]
+        if len(dirs) < len(planned):  # a cell averaged over fewer scenes would change silently
+            say(f"{name}: {len(planned) - len(dirs)} of its {len(planned)} runs have no result at this commit, not written "
+                f"(what {target.name} held stays); rerun the command to finish them")
             continue
         if s.evaluations:
             paths.append(evaluation_plot(dirs, target.with_suffix(".png"), title=s.what, command=s.command() + (" --quick" if quick else ""),

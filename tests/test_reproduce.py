@@ -11,7 +11,7 @@ import pytest
 
 from drapebench.claims_catalogue import claims
 from drapebench import reproduce
-from drapebench.reproduce import Job, expand, finished, main, plan
+from drapebench.reproduce import Job, expand, finished, main, plan, write_tables
 from drapebench.reproduce_cost import summary, tally
 from drapebench.table_file import read_csv, verified_text
 from drapebench.table_specs import Sweep, specs, untrained
@@ -72,6 +72,19 @@ def test_quick_writes_a_table_and_claims_and_a_restart_reruns_nothing(tmp_path, 
     assert main(args) == 0 and "1 runs, 1 already finished" in capsys.readouterr().out  # resumed: nothing reruns
     (job.dir / "reproduce.json").write_text('{"overrides": [], "commit": "other"}')  # another config or commit
     assert not finished(job, "other") and main([*args, "--dry-run"]) == 0 and "todo  baseline" in capsys.readouterr().out
+
+
+def test_a_table_with_runs_missing_is_not_written(tmp_path, monkeypatch):
+    """A cell averaged over fewer scenes than planned would change silently: the committed table stays instead."""
+    monkeypatch.setattr(reproduce, "commit", lambda: "0" * 40)
+    jobs = plan(["gensim_fig10"], tmp_path / "runs", quick=True)
+    assert len(jobs) > 1
+    jobs[0].dir.mkdir(parents=True)
+    (jobs[0].dir / "metrics.json").write_text("{}")
+    (jobs[0].dir / "reproduce.json").write_text(json.dumps({"overrides": list(jobs[0].overrides), "commit": "0" * 40}))
+    said = []
+    assert write_tables(["gensim_fig10"], tmp_path / "runs", tmp_path / "out", quick=True, say=said.append) == []
+    assert f"{len(jobs) - 1} of its {len(jobs)} runs have no result" in said[0] and not (tmp_path / "out").exists()
 
 
 def test_runs_on_uncommitted_or_unknown_code_never_count_as_finished(tmp_path):
