@@ -98,6 +98,9 @@ def collect(dirs) -> pd.DataFrame:
         for f in _run_files(d, "metrics.json"):
             rec = json.loads(f.read_text())
             rec["run_dir"] = str(f.parent)
+            env = f.parent / "env.json"
+            if env.exists():  # the torch threads the run drew with: a drape time depends on them
+                rec["torch_threads"] = json.loads(env.read_text()).get("torch_threads")
             join_registry(f.parent)
             losses = f.parent / "losses.csv"
             converged = converged_seconds(losses, rec["train_s"]) if rec.get("train_s") and losses.exists() else None
@@ -323,10 +326,13 @@ def run_table(df: pd.DataFrame, failed: pd.DataFrame, metrics: list[str], decima
 
 
 def provenance(df: pd.DataFrame, command: str) -> str:
-    """One line naming the command, commits, machine and date that produced the table."""
+    """One line naming the command, commits, machine, the runs' torch threads (their ``env.json``; a drape time
+    depends on them) and date that produced the table."""
     commits = ", ".join(sorted(set(map(str, df.get("commit", pd.Series(["unknown"]))))))
     when = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    return f"Produced by `{command}` from runs at commit(s) {commits} on {platform.machine()} / {platform.system()} ({when})."
+    counts = sorted({int(t) for t in df.get("torch_threads", pd.Series(dtype=float)).dropna()})
+    threads = f", {' or '.join(map(str, counts))} torch thread{'s' if counts != [1] else ''} per run" if counts else ""
+    return f"Produced by `{command}` from runs at commit(s) {commits} on {platform.machine()} / {platform.system()}{threads} ({when})."
 
 
 def scene(df: pd.DataFrame) -> str:

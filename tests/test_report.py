@@ -4,7 +4,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from drapebench.report import collect, table, write_summary, write_table
+from drapebench.report import collect, provenance, table, write_summary, write_table
 
 FIXTURES = Path(__file__).parent / "fixtures" / "runs"
 
@@ -35,6 +35,18 @@ def test_write_table_outputs_with_provenance(tmp_path):
     assert png.stat().st_size > 1000
     with pytest.raises(KeyError, match="no table 'nope'; tables: baseline"):
         write_table([FIXTURES], "nope", tmp_path / "x")
+
+
+def test_the_provenance_names_the_runs_torch_threads(tmp_path):
+    """runtime_vs_error's ms/frame depend on the threads each run drew with (``reproduce --jobs`` pins its share)."""
+    import json
+    import shutil
+
+    shutil.copytree(FIXTURES, tmp_path / "runs")
+    for i, f in enumerate(sorted((tmp_path / "runs").rglob("metrics.json"))):
+        (f.parent / "env.json").write_text(json.dumps({"torch_threads": 1 + i % 2}))
+    assert ", 1 or 2 torch threads per run (" in provenance(collect([tmp_path / "runs"]), "x")
+    assert "torch thread" not in provenance(collect([FIXTURES]), "x")  # runs without env.json: nothing claimed
 
 
 def test_summary_and_missing_runs(tmp_path):
