@@ -458,14 +458,14 @@ def with_status(readme: str, claims_md: str, path: Path) -> str:
     return readme[:start] + status_block(claims_md) + readme[end + len(STATUS_END):]
 
 
-def write_claims(reports: Path, out: Path | None = None, readme: Path | None = None) -> Path:
+def write_claims(reports: Path, out: Path | None = None, readme: Path | None = None, note: str = "") -> Path:
     """Write the scoreboard of every method's claims (:func:`drapebench.claims_catalogue.claims`) over ``reports`` to ``out`` (default
-    ``reports/claims.md``) and its verdict counts into ``readme``'s status block (default: the project's README.md
-    when ``out`` is the committed claims.md), atomically; returns ``out``."""
+    ``reports/claims.md``), ``note`` (a line) above it, and its verdict counts into ``readme``'s status block (default:
+    the project's README.md when ``out`` is the committed claims.md), atomically; returns ``out``."""
     from drapebench.claims_catalogue import claims
 
     out = out or reports / "claims.md"
-    text = render(claims(), reports)
+    text = (f"{note}\n\n" if note else "") + render(claims(), reports)
     with atomic_write(out, "w") as f:
         f.write(text)
     readme = readme or (PROJECT_ROOT / "README.md" if Path(out).resolve() == (PROJECT_ROOT / "reports" / "claims.md").resolve() else None)

@@ -276,6 +276,9 @@ def main(argv=None) -> int:
     base = PROJECT_ROOT / "outputs" / ("reproduce_quick" if args.quick else "reproduce")
     root = args.runs or (base / "runs" if args.quick else base)
     out = args.out or (base / "reports" if args.quick else PROJECT_ROOT / "reports")
+    if args.quick and out.resolve() == (PROJECT_ROOT / "reports").resolve():
+        parser.error("--quick --out reports: quick tables are untrained 8-frame checks of the pipeline, not results, and would "
+                     "replace the committed tables and claims.md; leave --out out or name another folder")
     names = [n for n in tables if n in args.tables or _needed_by(n, args.tables)]
     jobs = plan(names, root, args.quick)
     at = commit()
@@ -295,7 +298,8 @@ def main(argv=None) -> int:
     paths = write_tables([n for n in names if n in args.tables], root, out, args.quick)
     from drapebench.claims import write_claims
 
-    paths.append(write_claims(out))
+    quick_note = "**--quick**: these verdicts read untrained 8-frame tables that check the pipeline; they are not results."
+    paths.append(write_claims(out, note=quick_note if args.quick else ""))
     for p in paths:
         print(p)
     if failed:

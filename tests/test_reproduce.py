@@ -67,7 +67,9 @@ def test_quick_writes_a_table_and_claims_and_a_restart_reruns_nothing(tmp_path, 
     assert "1 runs, 0 already finished" in said and "[1/1] baseline: baseline method=lbs" in said
     table = read_csv(tmp_path / "out" / "baseline.csv")
     assert [r[1][0] for r in table.rows] == ["lbs"] and "drapebench.reproduce --tables baseline --quick" in table.comments[0]
-    assert (tmp_path / "out" / "claims.md").exists()
+    assert (tmp_path / "out" / "claims.md").read_text().startswith("**--quick**")
+    with pytest.raises(SystemExit):  # quick tables never replace the committed ones
+        main(["--quick", "--tables", "baseline", "--out", "reports"])
     (job,) = plan(["baseline"], tmp_path / "runs", quick=True)
     assert main(args) == 0 and "1 runs, 1 already finished" in capsys.readouterr().out  # resumed: nothing reruns
     (job.dir / "reproduce.json").write_text('{"overrides": [], "commit": "other"}')  # another config or commit
