@@ -2,7 +2,7 @@
 :class:`drapebench.table_specs.TableSpec` each, which ``drapebench.report`` and ``drapebench.reproduce`` find through
 :mod:`drapebench.plugins`."""
 
-from drapebench.table_specs import ONE_THREAD, SEEDS, Sweep, TableSpec
+from drapebench.table_specs import ONE_THREAD, SEEDS, Sweep, TableSpec, untrained
 
 TABLES = [
     TableSpec("gensim_table1", "GenSim Table 1 measured: one trained model per method on what it did not see in training",
@@ -32,10 +32,11 @@ TABLES = [
               ("eps_e", "edge_mm", "smoothness", "eps_c", "vertex_error_mm"), sweeps_of="gensim_generalisation",
               methods=("gensim", "gensim_arap", "gensim_no_restrain", "gensim_no_bending", "gensim_no_collision", "lbs")),  # fmt: skip
     TableSpec("gensim_pen", "GenSim Fig. 2 / 11: what PEN adds to its ARAP stage (energy, ε_c, ε_e, displacement), with "
-              "one-step ARAP (nitr = 1) and lbs as controls", ("energy_j", "eps_c", "eps_e", "smoothness", "pen_mm", "pen_p99_mm"),
+              "one-step ARAP (nitr = 1), PEN untrained and lbs as controls", ("energy_j", "eps_c", "eps_e", "smoothness", "pen_mm", "pen_p99_mm"),
               sweeps=(Sweep("gensim_pen", (SEEDS, ONE_THREAD)), Sweep("gensim_pen", ("method=lbs,gensim_optimum",)),
-                      Sweep("gensim_pen", ("method=gensim_arap", "method.name=gensim_arap_nitr1", "+method.params.arap_steps=1"))),
-              methods=("gensim_arap", "gensim_arap_nitr1", "gensim", "gensim_optimum", "lbs")),  # fmt: skip
+                      Sweep("gensim_pen", ("method=gensim_arap", "method.name=gensim_arap_nitr1", "+method.params.arap_steps=1")),
+                      *untrained("gensim_pen", ("gensim",), SEEDS, ONE_THREAD)),
+              methods=("gensim_arap", "gensim_arap_nitr1", "gensim_untrained", "gensim", "gensim_optimum", "lbs")),  # fmt: skip
     TableSpec("gensim_fig10", "GenSim Fig. 10: the loss ablation V1 / V2 / V3 on a short skirt beside the ARAP stage",
               ("hem_drop_mm", "pin_drop_mm", "eps_e", "eps_c", "pen_mm"), sweeps=(Sweep("gensim_fig10", (SEEDS, ONE_THREAD)),), bars=("hem_drop_mm", "eps_e")),
 ]
