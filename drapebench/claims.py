@@ -120,14 +120,17 @@ def resolution_floors(tables: dict) -> dict:
     """{(table, metric label): (floor, cells, identical)} and {metric label: (...)}: a metric's floor in a table is
     the median seeds' std of its multi-seed cells there that have a spread (what two seeds of one method typically
     differ by on that scene), with the number of such cells and of cells whose seeds gave identical values
-    (deterministic rows: a rerun repeats the number exactly). The metric's own entry pools every CPU table of
-    ``tables`` (name -> :class:`Table`), for a table without multi-seed cells of it; a metric with none is absent
-    (floor 0)."""
+    (deterministic rows: a rerun repeats the number exactly). Untrained rows (``<m>_untrained``) are left out: their
+    spread is that of random initialisations, not what a measurement can resolve. The metric's own entry pools every
+    CPU table of ``tables`` (name -> :class:`Table`), for a table without multi-seed cells of it; a metric with none is
+    absent (floor 0)."""
     spreads: dict = {}
     for name, t in tables.items():
         if name.endswith("_gpu"):
             continue
-        for (_, _, metric), cell in t.cells.items():
+        for (row, _, metric), cell in t.cells.items():
+            if row.endswith("_untrained"):
+                continue
             v = parse_cell(cell)
             if v is not None and v.n > 1:
                 for key in ((name, metric), metric):

@@ -118,6 +118,9 @@ def test_floors_are_the_median_seed_spread_per_table_and_metric(tmp_path):
     t = _table(tmp_path, {"hi": ["5 ± 0.1 (n=3)", "6 ± 0.3 (n=3)"], "lo": ["1 ± 0.2 (n=3)", "2 ± 0 (n=3)"]})
     floors = resolution_floors({"t": t})
     assert floors[("t", "m")] == (pytest.approx(0.2), 3, 1) and floors["m"] == floors[("t", "m")]
+    t = _table(tmp_path, {"hi": ["5 ± 0.1 (n=3)", "6 ± 0.3 (n=3)"], "lo": ["1 ± 0.2 (n=3)", "2 ± 0 (n=3)"],
+                          "hi_untrained": ["9 ± 4 (n=3)", "9 ± 5 (n=3)"]})  # random initialisations' spread: no floor
+    assert resolution_floors({"t": t})[("t", "m")] == (pytest.approx(0.2), 3, 1)
 
 
 def test_cases_with_the_same_numbers_count_once(tmp_path):

@@ -11,9 +11,8 @@ F10 = dict(table="gensim_fig10")
 GP = dict(table="gensim_pen")
 GARMENTS_PEN = ("tshirt", "skirt", "dress")
 RVE = dict(table="runtime_vs_error")
-PEN_CONTROL = ("The control is PEN untrained (gensim_untrained: PEN's initial output, a few mm, on the ARAP stage; gensim_pen's "
-               "spec runs it, the committed table predates it); lbs, once the control here, skins without the ARAP stage and "
-               "explains nothing of PEN's correction.")
+PEN_CONTROL = ("The control is PEN untrained (gensim_untrained: PEN's initial output, about 10 mm, on the ARAP stage); lbs, "
+               "once the control here, skins without the ARAP stage and explains nothing of PEN's correction.")
 F10_SAME_NETWORK = ("V1-V3 are one network trained with and without one loss term, so the pair is its own control; the "
                     "ARAP stage, which has no PEN, explains no difference between them")
 
