@@ -123,17 +123,21 @@ def plan(names: list, root: Path, quick: bool = False) -> list:
 
 
 def commit() -> str:
-    """The code the runs execute (:func:`drapebench.results.git_commit`, ``-dirty`` with uncommitted changes)."""
+    """The code the runs execute: :func:`drapebench.results.git_commit`, and with uncommitted changes
+    ``<sha>-dirty+<hash of git diff HEAD>``, so that two sittings on different edits never share a label."""
     from drapebench.results import git_commit
 
-    return git_commit()
+    at = git_commit()
+    if not at.endswith("-dirty"):
+        return at
+    diff = subprocess.run(["git", "diff", "HEAD"], cwd=PROJECT_ROOT, capture_output=True, check=False).stdout
+    return f"{at}+{hashlib.sha256(diff).hexdigest()[:12]}"
 
 
 def finished(job: Job, at: str) -> bool:
-    """Whether ``job`` has run to an end (results or a recorded failure) with the same overrides at commit ``at``.
-    Code no commit names (``at`` "unknown" or ``<sha>-dirty``: uncommitted changes, which may differ from one
-    sitting to the next under the same label) has finished nothing."""
-    if at == "unknown" or at.endswith("-dirty"):
+    """Whether ``job`` has run to an end (results or a recorded failure) with the same overrides at commit ``at``
+    (:func:`commit`); code git cannot name (``at`` "unknown") has finished nothing."""
+    if at == "unknown":
         return False
     stamp = job.dir / "reproduce.json"
     if not stamp.exists() or not ((job.dir / "metrics.json").exists() or (job.dir / "failed.json").exists()):
@@ -185,7 +189,7 @@ def run_all(jobs: list, at: str, say=print, workers: int = 1, runner=run_job) ->
     from concurrent.futures import ThreadPoolExecutor
 
     todo = [j for j in jobs if not finished(j, at)]
-    say(f"{len(jobs)} runs, {len(jobs) - len(todo)} already finished at {at[:12] + ('-dirty: uncommitted code, nothing counts as finished' if at.endswith('-dirty') else '')}, {len(todo)} to run"
+    say(f"{len(jobs)} runs, {len(jobs) - len(todo)} already finished at {at[:12] + (' with uncommitted changes' if '-dirty' in at else '')}, {len(todo)} to run"
         + (f", {workers} at once" if workers > 1 else ""))
     failed, start, lock, counter = [], time.monotonic(), threading.Lock(), iter(range(1, len(todo) + 1))
     done = [0]

@@ -89,14 +89,19 @@ def test_a_table_with_runs_missing_is_not_written(tmp_path, monkeypatch):
     assert f"{len(jobs) - 1} of its {len(jobs)} runs have no result" in said[0] and not (tmp_path / "out").exists()
 
 
-def test_runs_on_uncommitted_or_unknown_code_never_count_as_finished(tmp_path):
-    """Two sittings on different uncommitted edits carry the same ``<sha>-dirty`` label: neither may skip the other's runs."""
+def test_runs_on_other_uncommitted_edits_or_unknown_code_never_count_as_finished(tmp_path, monkeypatch):
+    """Two sittings on different uncommitted edits share git's ``<sha>-dirty`` label: the diff's hash tells them apart."""
     (job,) = plan(["baseline"], tmp_path / "runs", quick=True)
     job.dir.mkdir(parents=True)
     (job.dir / "metrics.json").write_text("{}")
-    for at in ("a" * 40, "a" * 40 + "-dirty", "unknown"):
+    for at in ("a" * 40, "a" * 40 + "-dirty+0123456789ab", "unknown"):
         (job.dir / "reproduce.json").write_text(json.dumps({"overrides": list(job.overrides), "commit": at}))
-        assert finished(job, at) == (at == "a" * 40)
+        assert finished(job, at) == (at != "unknown")
+    assert not finished(job, "a" * 40 + "-dirty+ba9876543210")  # another edit of the same commit
+    import drapebench.results
+
+    monkeypatch.setattr(drapebench.results, "_COMMIT_AT_IMPORT", "a" * 40 + "-dirty")
+    assert re.fullmatch("a{40}-dirty\\+[0-9a-f]{12}", reproduce.commit())
 
 
 @pytest.mark.slow
