@@ -60,13 +60,15 @@ def parse_cell(cell) -> Value | None:
 class Table:
     """A committed table read from its CSV: cells keyed by (row, column group, metric label) (group "" for a
     table without groups), its groups in order, the commits of its provenance line and, where it names them, the
-    commits of each row."""
+    commits of each row and those whose code trained a row's models when they are not its runs' ("unrecorded": a
+    model cached before that was recorded)."""
 
     name: str
     cells: dict
     groups: list
     commits: list
     row_commits: dict = field(default_factory=dict)
+    trained_at: dict = field(default_factory=dict)
 
     def get(self, row: str, group: str, metric: str) -> Value | None:
         """The parsed cell, None where the table lacks it or it holds no number."""
@@ -75,6 +77,9 @@ class Table:
     def rows(self) -> list:
         """The table's rows, in order."""
         return list(dict.fromkeys(r for r, _, _ in self.cells))
+
+
+_TRAINED = r"(?:[0-9a-f]{7,40}(?:-dirty)?|unrecorded)"  # a commit that trained a model, as report.trained_note writes it
 
 
 def read_table(path: Path) -> Table:
@@ -86,10 +91,13 @@ def read_table(path: Path) -> Table:
     mixed = next((c for c in f.comments if c.startswith("**Mixed commits**")), "")
     row_commits = {m.group(1): [c.strip() for c in m.group(2).split(",")]
                    for m in re.finditer(r"([\w.-]+) ([0-9a-f]{7,40}(?:, [0-9a-f]{7,40})*)(?=;|\.$)", mixed.split(": ", 1)[-1])}  # fmt: skip
+    cached = next((c for c in f.comments if c.startswith("**Models trained at**")), "")
+    trained_at = {m.group(1): [c.strip() for c in m.group(2).split(",")]
+                  for m in re.finditer(rf"([\w.-]+) ({_TRAINED}(?:, {_TRAINED})*)(?=;|\.$)", cached.rsplit(": ", 1)[-1])}  # fmt: skip
     metrics = f.header[-1]
     groups = f.header[0] if len(f.header) == 2 else [""] * len(metrics)
     cells = {(cells[0], groups[j], metrics[j]): cells[j] for _, cells in f.rows for j in range(1, len(cells))}
-    return Table(Path(path).stem, cells, list(dict.fromkeys(groups[1:])), commits, row_commits)
+    return Table(Path(path).stem, cells, list(dict.fromkeys(groups[1:])), commits, row_commits, trained_at)
 
 
 KINDS = ("order", "order_groups", "level", "within", "untested")
@@ -109,7 +117,8 @@ RULES = (
     "distinct cases hold (and the control fails them); **scene-determined**: the cases that hold, the control "
     "meets them too; **inside the spread**: no case holds or fails beyond the bands; **too small to tell**: every difference is "
     "under the floor; **not reproduced**: no case holds and one holds the other way; **stale: ...**: a row it reads "
-    "comes from another commit than its table's or from method code that has changed since (what its rows "
+    "comes from another commit than its table's or from method code that has changed since, or its model was trained "
+    "(and cached) by such code (what its rows "
     "would give follows, *holds* where they would reproduce it: a stale claim can hold, never reproduce); **not run**: a cell it needs is missing or failed; **not "
     "testable here**: no committed table can test it (what it needs is said). A level on a scene unlike the paper's "
     "is marked *indicative*."
@@ -302,7 +311,7 @@ def evaluate(claim: Claim, table: Table | None, floors: dict | None = None, code
         verdict = "inside the spread"
     controls = {r for c in claim.control for r in ([c] if isinstance(c, str) else c.values())}
     rows = {x for c in found for x in (c.hi, c.lo) if x != "bound"} | controls
-    stale = stale_rows(sorted(rows & set(table.rows())), table.row_commits, table.commits, code, owner(table.name))
+    stale = stale_rows(sorted(rows & set(table.rows())), table.row_commits, table.commits, code, owner(table.name), table.trained_at)
     if stale:  # it can hold, never reproduce
         verdict = f"stale: {'holds' if verdict == 'reproduced' else verdict}"
     if not claim.comparable:

@@ -309,6 +309,21 @@ def commits_note(df: pd.DataFrame) -> str:
             + "; ".join(f"{m} {c}" for m, c in per.items()) + ".")
 
 
+def trained_note(df: pd.DataFrame) -> str:
+    """A note naming, per method, the commits whose code trained its models where they are not the commit of the
+    runs that used them (``trained_at`` in metrics.json: a cached model is keyed by its configuration, not its code;
+    "unrecorded" for a model cached before that was recorded); "" when every model was trained at its run's commit."""
+    if "trained_at" not in df or "commit" not in df:
+        return ""
+    other = df[df["trained_at"].notna() & (df["trained_at"] != df["commit"])]
+    if other.empty:
+        return ""
+    short = lambda c: c[:7] + ("-dirty" if "-dirty" in c else "") if re.match(r"[0-9a-f]{40}", c) else c  # noqa: E731
+    per = other.groupby("method", sort=False)["trained_at"].agg(lambda c: ", ".join(short(str(x)) for x in dict.fromkeys(c)))
+    return ("**Models trained at**: some models were trained (and cached) by the code of another commit than their runs': "
+            + "; ".join(f"{m} {c}" for m, c in per.items()) + ".")
+
+
 def run_table(df: pd.DataFrame, failed: pd.DataFrame, metrics: list[str], decimals: int | None = None) -> pd.DataFrame:
     """One row per run (its scene in ``CASE_COLUMNS``, then ``metrics``), the failed runs' metric cells
     "failed"; rows in the order of the runs; ``decimals`` as :func:`table`'s."""
@@ -708,14 +723,14 @@ def write_table(dirs, name: str, out: Path, command: str | None = None, methods:
     if ts.pareto and speedups(df):
         notes += "\n\n" + speedups(df)
     notes += "\n\n" + seeds_note(df, group)
-    for note in (time_cut_note(df), commits_note(df)):
+    for note in (time_cut_note(df), commits_note(df), trained_note(df)):
         notes += "\n\n" + note if note else ""
     out = gpu_out(Path(out), df)
     paths = [out.with_suffix(".md"), out.with_suffix(".tex"), out.with_suffix(".csv"), out.parent / f"{out.name}_runtime.png"]
     with atomic_write(paths[0], "w") as f:
         mixed = f" (rows from {df['commit'].nunique()} commits)" if commits_note(df) else ""
         f.write(f"# {name}{mixed}\n\n{_markdown(t)}\n{notes}\n\n{about}\n\n{prov}\n")
-    header = (prov, *about.split("\n\n"), seeds_note(df, group), *(p for n in (time_cut_note(df), commits_note(df)) for p in n.split("\n\n") if p))
+    header = (prov, *about.split("\n\n"), seeds_note(df, group), *(p for n in (time_cut_note(df), commits_note(df), trained_note(df)) for p in n.split("\n\n") if p))
     comment = "".join(f"{{c}} {line}\n" for line in header)
     with atomic_write(paths[1], "w") as f:
         f.write(comment.format(c="%") + t.style.to_latex(hrules=True, multicol_align="c"))

@@ -1,5 +1,6 @@
 """Which rows of a committed table are stale: run at another commit than the table's newest, or by method code
-that has changed since.
+that has changed since, or reading a cached model that such code trained (a model is cached by its configuration,
+not its code: the table names the commit that trained it, ``report.trained_note``).
 
 A method's code is its implementation folder ``methods/<impl>/`` (its ``.py`` files but the declarations of what
 it reports, :func:`makes_numbers`) and its configs
@@ -134,12 +135,15 @@ def fingerprint(impl: str, commit: str | None = None) -> str:
     return h.hexdigest()[:12]
 
 
-def stale_rows(rows, row_commits: dict, table_commits, code: dict | None = None, owner: str | None = None) -> dict:
+def stale_rows(rows, row_commits: dict, table_commits, code: dict | None = None, owner: str | None = None,
+               trained_at: dict | None = None) -> dict:  # fmt: skip
     """{row: why} for the rows of ``rows`` that are stale: from another commit than the newest of
-    ``table_commits``, from a commit git does not know, or run by code whose :func:`fingerprint` differs from
-    ``code`` ({impl: fingerprint}, the code the verdicts are judged against; default: the working tree's).
-    ``row_commits``: {row: [commits]}; a row missing from it ran at the table's commits. ``owner``: the
-    implementation of the rows that name no method config (a benchmark's garment rows; :func:`table_specs.owner`)."""
+    ``table_commits``, from a commit git does not know, or run (or their models trained) by code whose
+    :func:`fingerprint` differs from ``code`` ({impl: fingerprint}, the code the verdicts are judged against;
+    default: the working tree's). ``row_commits``: {row: [commits]}; a row missing from it ran at the table's
+    commits. ``owner``: the implementation of the rows that name no method config (a benchmark's garment rows;
+    :func:`table_specs.owner`). ``trained_at``: {row: [commits]}, those whose code trained the row's cached models
+    where they are not its runs' commit ("unrecorded", a model cached before that was recorded, is not judged)."""
     table_commit = newest(table_commits)
     out = {}
     for row in rows:
@@ -156,7 +160,22 @@ def stale_rows(rows, row_commits: dict, table_commits, code: dict | None = None,
             out[row] = f"from {', '.join(c[:7] for c in full if c != table_commit)}, not the table's {table_commit[:7]}"
         elif impl is not None and fingerprint(impl, full[0]) != (code or {}).get(impl, fingerprint(impl)):
             out[row] = f"methods/{impl} or its configs changed since {full[0][:7]}"
+        elif impl is not None and (why := _trained_by_other_code(impl, (trained_at or {}).get(row, []), code)):
+            out[row] = why
     return out
+
+
+def _trained_by_other_code(impl: str, trained_at: list, code: dict | None) -> str | None:
+    """Why models trained at the commits ``trained_at`` are not those of ``code``'s methods/<impl> (None if they are)."""
+    for t in trained_at:
+        if t == "unrecorded":
+            continue
+        full = known(t)
+        if full is None:
+            return f"its model was trained at {t}, a commit not in this repository's history (or uncommitted changes)"
+        if fingerprint(impl, full) != (code or {}).get(impl, fingerprint(impl)):
+            return f"its model was trained by methods/{impl} as of {full[:7]}, which has changed since"
+    return None
 
 
 def impls() -> list:

@@ -31,11 +31,12 @@ def test_cells_parse_to_mean_std_over_seeds_and_n():
     assert parse_cell("–") is None and parse_cell("failed") is None and parse_cell("12").mean == 12.0
 
 
-def _csv(tmp_path, rows: dict, name="t", commits=None, mixed="") -> Path:
+def _csv(tmp_path, rows: dict, name="t", commits=None, mixed="", trained="") -> Path:
     """A grouped table CSV as report.py writes it (sealed): rows {method: [cells of group a, group b]} of metric m."""
     commits = commits or [_git("rev-parse", "HEAD")]
     lines = [f"# Produced by `x` from runs at commit(s) {', '.join(commits)} on x86_64 / Linux (now)."]
     lines += [f"# **Mixed commits**: the rows come from {len(commits)} commits, so code changed between them: {mixed}."] if mixed else []
+    lines += [f"# **Models trained at**: some models were trained (and cached) by the code of another commit than their runs': {trained}."] if trained else []
     lines += ["garment,a,a,b,b", "metric,m,c,m,c", "method,,,,"]
     lines += [f"{k},{a},{ca},{b},{cb}" for k, (a, b, *ctrl) in rows.items() for ca, cb in [ctrl or ["–", "–"]]]
     path = tmp_path / f"{name}.csv"
@@ -151,6 +152,26 @@ def test_a_row_from_another_commit_or_changed_code_makes_the_claim_stale(tmp_pat
     assert evaluate(bench, t).verdict == "holds, one seed"
     j = evaluate(bench, t, code={"vae": "000000000000"})
     assert j.verdict == "stale: holds, one seed" and "methods/vae" in j.stale["tshirt"]
+
+
+def test_a_model_trained_by_older_code_makes_the_claim_stale(tmp_path, monkeypatch):
+    """A cached model is keyed by its configuration, not its code: a row run at the table's commit whose model was
+    trained by another version of its method's code is stale; one trained by the same code, or unrecorded, is not."""
+    from drapebench import staleness
+
+    level = Claim("l", "P", "lbs low", "-", "level", table="t", metrics=("m",), row="lbs", bound=9, control_why="test")
+    parent = _git("rev-parse", "HEAD~1")
+    code = {"lbs": "now"}
+    monkeypatch.setattr(staleness, "fingerprint", lambda impl, commit=None: "then" if commit == parent else "now")
+    t = _table(tmp_path, {"lbs": ["1", "2"]}, trained=f"lbs {parent[:7]}, unrecorded")
+    assert t.trained_at == {"lbs": [parent[:7], "unrecorded"]}
+    j = evaluate(level, t, code=code)
+    assert j.verdict == "stale: holds, one seed" and f"trained by methods/lbs as of {parent[:7]}" in j.stale["lbs"]
+    monkeypatch.setattr(staleness, "fingerprint", lambda impl, commit=None: "now")  # the same code trained it
+    assert evaluate(level, t, code=code).verdict == "holds, one seed"
+    j = evaluate(level, _table(tmp_path, {"lbs": ["1", "2"]}, trained="lbs 0123456"), code=code)
+    assert j.verdict == "stale: holds, one seed" and "trained at 0123456" in j.stale["lbs"]
+    assert evaluate(level, _table(tmp_path, {"lbs": ["1", "2"]}, trained="lbs unrecorded"), code=code).verdict == "holds, one seed"
 
 
 def test_within_compares_each_group_with_the_reference_group(tmp_path):

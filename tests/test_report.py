@@ -407,9 +407,10 @@ def test_a_wide_grouped_table_is_written_as_one_markdown_table_per_group():
     assert "| gaps" not in per_group[per_group.index("g1") + 1] and "| gaps" in per_group[per_group.index("g0") + 1]
 
 
-def _seeded_runs(tmp_path, values, commits=("abc123",) * 3, skip=()):
+def _seeded_runs(tmp_path, values, commits=("abc123",) * 3, skip=(), trained_at=None):
     """Copies of the lbs/tshirt fixture run, one per seed, with eps_e set from ``values``; ``skip``: seeds
-    whose run is moved to the skirt (a seed that ran another scene)."""
+    whose run is moved to the skirt (a seed that ran another scene); ``trained_at``: per seed, the commit that
+    trained its model."""
     import json
     import shutil
 
@@ -417,6 +418,8 @@ def _seeded_runs(tmp_path, values, commits=("abc123",) * 3, skip=()):
     for seed, (v, commit) in enumerate(zip(values, commits)):
         rec = json.loads(src.read_text())
         rec.update(method="gaps", eps_e=v, seed=seed, train_seed=seed, commit=commit)
+        if trained_at is not None:
+            rec["trained_at"] = trained_at[seed]
         if seed in skip:
             rec["motion"] = "kick"
         d = tmp_path / f"{seed}_gaps_tshirt"
@@ -461,6 +464,16 @@ def test_a_table_from_several_commits_says_so(tmp_path):
     _seeded_runs(tmp_path, [1.0, 2.0, 4.0], commits=("abc123", "def4567", "abc123"))
     text = write_table([tmp_path], "baseline", tmp_path / "out" / "t", command="pytest")[0].read_text()
     assert text.startswith("# baseline (rows from 2 commits)") and "**Mixed commits**: the rows come from 2 commits" in text and "gaps abc123, def4567" in text and "pbs abc123" in text
+
+
+def test_a_table_names_models_trained_by_another_commits_code(tmp_path):
+    a, b = "a" * 40, "b" * 40
+    _seeded_runs(tmp_path / "other", [1.0, 2.0, 4.0], commits=(a,) * 3, trained_at=(a, b, "unrecorded"))
+    paths = write_table([tmp_path / "other"], "baseline", tmp_path / "out" / "t", command="pytest")
+    assert "**Models trained at**" in paths[0].read_text() and "gaps bbbbbbb, unrecorded." in paths[0].read_text()
+    assert "gaps bbbbbbb, unrecorded." in paths[2].read_text()  # the CSV the scoreboard reads
+    _seeded_runs(tmp_path / "same", [1.0, 2.0, 4.0], commits=(a,) * 3, trained_at=(a, a, a))
+    assert "Models trained at" not in write_table([tmp_path / "same"], "baseline", tmp_path / "out2" / "t", command="pytest")[0].read_text()
 
 
 def test_a_per_run_table_keeps_seeds_apart(tmp_path):
