@@ -4,7 +4,8 @@ not its code: the table names the commit that trained it, ``report.trained_note`
 
 A method's code is its implementation folder ``methods/<impl>/`` (its ``.py`` files but the declarations of what
 it reports, :func:`makes_numbers`) and its configs
-(``conf/method/<name>.yaml`` of every config whose implementation it is, and ``conf/method/<impl>_*/``), compared
+(``conf/method/<name>.yaml`` of every config whose implementation it is, ``conf/method/<impl>_*/``, and for a
+method that trains, the training and reference-set presets ``conf/train/``, ``conf/data/``), compared
 by :func:`fingerprint`: Python without comments and docstrings (its syntax tree), YAML as the data it loads, so a
 reflowed docstring changes nothing and a changed default does. Reads git history; a commit the repository does not
 know (or a run on uncommitted changes, ``-dirty``) cannot be checked and counts as stale.
@@ -14,6 +15,7 @@ from __future__ import annotations
 
 import ast
 import hashlib
+import importlib
 import json
 import subprocess
 from functools import lru_cache
@@ -25,6 +27,7 @@ from drapebench.cache import PROJECT_ROOT
 from drapebench.plugins import DECLARATIONS
 
 METHOD_CONF = "conf/method"
+TRAINING_CONF = ("conf/train", "conf/data")  # the training and reference-set presets: configuration of a method that trains
 
 
 def _git(*args: str) -> subprocess.CompletedProcess:
@@ -83,12 +86,28 @@ def implementation(row: str) -> str | None:
 @lru_cache(maxsize=None)
 def code_files(impl: str) -> tuple:
     """The config files (repository paths) of today's tree that belong to ``impl``: every method config whose
-    implementation it is and its budget folders (``conf/method/<impl>_*/``); its ``.py`` files are listed per commit
-    by :func:`fingerprint`."""
+    implementation it is and its budget folders (``conf/method/<impl>_*/``), and for a method that trains
+    (:func:`learns`) the training and reference-set presets (``conf/train/``, ``conf/data/``); its ``.py`` files are listed per commit by
+    :func:`fingerprint`."""
     conf = PROJECT_ROOT / METHOD_CONF
     files = [f"{METHOD_CONF}/{p.name}" for p in sorted(conf.glob("*.yaml")) if _conf_impl(p.stem) == impl]
     files += [str(p.relative_to(PROJECT_ROOT)) for p in sorted(conf.glob(f"{impl}_*/*.yaml"))]
+    if learns(impl):
+        files += [str(p.relative_to(PROJECT_ROOT)) for d in TRAINING_CONF for p in sorted((PROJECT_ROOT / d).glob("*.yaml"))]
     return tuple(files)
+
+
+@lru_cache(maxsize=None)
+def learns(impl: str) -> bool:
+    """Whether a registered method of the folder ``methods/<impl>`` trains a model (its class's ``learns``)."""
+    import methods
+
+    for name in methods.available():
+        module, _, cls = methods.target(name).partition(":")
+        parts = module.split(".")
+        if len(parts) > 1 and parts[0] == "methods" and parts[1] == impl and getattr(importlib.import_module(module), cls).learns:
+            return True
+    return False
 
 
 def _normalised(path: str, text: str) -> str:

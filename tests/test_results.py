@@ -218,6 +218,17 @@ def test_a_method_s_declarations_are_not_part_of_its_code_fingerprint():
     assert not any(makes_numbers(f"methods/gaps/{m}.py") for m in ("metrics", "claims", "tables"))
 
 
+def test_a_training_preset_is_part_of_a_learning_method_s_code_and_not_of_a_skinning_s():
+    """A cached model is keyed by its configuration: a changed training or reference-set preset (conf/train,
+    conf/data) retrains it, so rows from before the change are stale for the methods that train and not for lbs."""
+    from drapebench.staleness import code_files, learns
+
+    assert learns("gaps") and learns("gensim") and learns("vae") and not learns("lbs") and not learns("pbs")
+    for impl in ("gaps", "gensim", "vae"):
+        assert {"conf/train/cpu.yaml", "conf/data/cpu.yaml"} <= set(code_files(impl))
+    assert not any(f.startswith(("conf/train/", "conf/data/")) for f in code_files("lbs") + code_files("pbs"))
+
+
 def test_tables_written_by_a_regeneration_do_not_make_its_runs_dirty(tmp_path, monkeypatch):
     """reproduce writes reports/ and README.md's status into the tree: the runs after it still name the clean commit;
     a changed source file makes them "-dirty"."""
