@@ -87,8 +87,8 @@ def implementation(row: str) -> str | None:
 def code_files(impl: str) -> tuple:
     """The config files (repository paths) of today's tree that belong to ``impl``: every method config whose
     implementation it is and its budget folders (``conf/method/<impl>_*/``), and for a method that trains
-    (:func:`learns`) the training and reference-set presets (``conf/train/``, ``conf/data/``); its ``.py`` files are listed per commit by
-    :func:`fingerprint`."""
+    (:func:`learns`) the training and reference-set presets (``conf/train/``, ``conf/data/``); its ``.py`` files
+    are listed per commit by :func:`fingerprint`."""
     conf = PROJECT_ROOT / METHOD_CONF
     files = [f"{METHOD_CONF}/{p.name}" for p in sorted(conf.glob("*.yaml")) if _conf_impl(p.stem) == impl]
     files += [str(p.relative_to(PROJECT_ROOT)) for p in sorted(conf.glob(f"{impl}_*/*.yaml"))]
