@@ -79,7 +79,7 @@ class Table:
         return list(dict.fromkeys(r for r, _, _ in self.cells))
 
 
-_TRAINED = r"(?:[0-9a-f]{7,40}(?:-dirty)?|unrecorded)"  # a commit that trained a model, as report.trained_note writes it
+_TRAINED = r"(?:[0-9a-f]{7,40}(?:-dirty)?|unrecorded|unknown)"  # a commit that trained a model, as report.trained_note writes it
 
 
 def read_table(path: Path) -> Table:

@@ -105,7 +105,7 @@ def learns(impl: str) -> bool:
     for name in methods.available():
         module, _, cls = methods.target(name).partition(":")
         parts = module.split(".")
-        if len(parts) > 1 and parts[0] == "methods" and parts[1] == impl and getattr(importlib.import_module(module), cls).learns:
+        if len(parts) > 1 and parts[0] == "methods" and parts[1] == impl and getattr(getattr(importlib.import_module(module), cls), "learns", False):
             return True
     return False
 
@@ -161,8 +161,9 @@ def stale_rows(rows, row_commits: dict, table_commits, code: dict | None = None,
     :func:`fingerprint` differs from ``code`` ({impl: fingerprint}, the code the verdicts are judged against;
     default: the working tree's). ``row_commits``: {row: [commits]}; a row missing from it ran at the table's
     commits. ``owner``: the implementation of the rows that name no method config (a benchmark's garment rows;
-    :func:`table_specs.owner`). ``trained_at``: {row: [commits]}, those whose code trained the row's cached models
-    where they are not its runs' commit ("unrecorded", a model cached before that was recorded, is not judged)."""
+    :func:`table_specs.owner`). ``trained_at``: {method: [commits]}, those whose code trained the method's cached
+    models where they are not its runs' commit (a garment row reads every method of ``owner``; "unrecorded", a
+    model cached before that was recorded, is not judged)."""
     table_commit = newest(table_commits)
     out = {}
     for row in rows:
@@ -179,9 +180,17 @@ def stale_rows(rows, row_commits: dict, table_commits, code: dict | None = None,
             out[row] = f"from {', '.join(c[:7] for c in full if c != table_commit)}, not the table's {table_commit[:7]}"
         elif impl is not None and fingerprint(impl, full[0]) != (code or {}).get(impl, fingerprint(impl)):
             out[row] = f"methods/{impl} or its configs changed since {full[0][:7]}"
-        elif impl is not None and (why := _trained_by_other_code(impl, (trained_at or {}).get(row, []), code)):
+        elif impl is not None and (why := _trained_by_other_code(impl, _trained(row, impl, trained_at or {}), code)):
             out[row] = why
     return out
+
+
+def _trained(row: str, impl: str, trained_at: dict) -> list:
+    """The commits that trained ``row``'s models: its own entry of ``trained_at`` ({method: [commits]}), or for a row
+    that names no method (a benchmark's garment row, judged as ``impl``'s) those of every method of ``impl``."""
+    if implementation(row) is not None:
+        return trained_at.get(row, [])
+    return [c for method, commits in trained_at.items() if implementation(method) == impl for c in commits]
 
 
 def _trained_by_other_code(impl: str, trained_at: list, code: dict | None) -> str | None:

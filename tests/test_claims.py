@@ -172,6 +172,11 @@ def test_a_model_trained_by_older_code_makes_the_claim_stale(tmp_path, monkeypat
     j = evaluate(level, _table(tmp_path, {"lbs": ["1", "2"]}, trained="lbs 0123456"), code=code)
     assert j.verdict == "stale: holds, one seed" and "trained at 0123456" in j.stale["lbs"]
     assert evaluate(level, _table(tmp_path, {"lbs": ["1", "2"]}, trained="lbs unrecorded"), code=code).verdict == "holds, one seed"
+    # a benchmark's garment rows read the models of every method of the package that declares the table
+    monkeypatch.setattr(staleness, "fingerprint", lambda impl, commit=None: "then" if commit == parent else "now")
+    bench = Claim("b", "P", "tshirt fast", "-", "level", table="vae_table2", metrics=("m",), row="tshirt", bound=9, control_why="test")
+    j = evaluate(bench, _table(tmp_path, {"tshirt": ["1", "2"]}, name="vae_table2", trained=f"vae {parent[:7]}"), code={"vae": "now"})
+    assert j.verdict == "stale: holds, one seed" and "methods/vae as of" in j.stale["tshirt"]
 
 
 def test_within_compares_each_group_with_the_reference_group(tmp_path):

@@ -467,11 +467,17 @@ def test_a_table_from_several_commits_says_so(tmp_path):
 
 
 def test_a_table_names_models_trained_by_another_commits_code(tmp_path):
+    from drapebench.claims import read_table
+
     a, b = "a" * 40, "b" * 40
     _seeded_runs(tmp_path / "other", [1.0, 2.0, 4.0], commits=(a,) * 3, trained_at=(a, b, "unrecorded"))
     paths = write_table([tmp_path / "other"], "baseline", tmp_path / "out" / "t", command="pytest")
     assert "**Models trained at**" in paths[0].read_text() and "gaps bbbbbbb, unrecorded." in paths[0].read_text()
-    assert "gaps bbbbbbb, unrecorded." in paths[2].read_text()  # the CSV the scoreboard reads
+    assert "gaps bbbbbbb, unrecorded." in paths[1].read_text()  # the .tex header
+    assert read_table(paths[2]).trained_at == {"gaps": ["bbbbbbb", "unrecorded"]}  # the CSV, as the scoreboard reads it
+    _seeded_runs(tmp_path / "odd", [1.0, 2.0, 4.0], commits=(a,) * 3, trained_at=(f"{b}-dirty+{'c' * 12}", "unknown", a))
+    odd = write_table([tmp_path / "odd"], "baseline", tmp_path / "out3" / "t", command="pytest")
+    assert read_table(odd[2]).trained_at == {"gaps": ["bbbbbbb-dirty", "unknown"]}  # neither is a known commit: stale
     _seeded_runs(tmp_path / "same", [1.0, 2.0, 4.0], commits=(a,) * 3, trained_at=(a, a, a))
     assert "Models trained at" not in write_table([tmp_path / "same"], "baseline", tmp_path / "out2" / "t", command="pytest")[0].read_text()
 
