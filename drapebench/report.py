@@ -723,14 +723,15 @@ def write_table(dirs, name: str, out: Path, command: str | None = None, methods:
     if ts.pareto and speedups(df):
         notes += "\n\n" + speedups(df)
     notes += "\n\n" + seeds_note(df, group)
-    for note in (time_cut_note(df), commits_note(df), trained_note(df)):
-        notes += "\n\n" + note if note else ""
+    warnings = [n for n in (time_cut_note(df), commits_note(df), trained_note(df)) if n]  # written to every format below
+    for note in warnings:
+        notes += "\n\n" + note
     out = gpu_out(Path(out), df)
     paths = [out.with_suffix(".md"), out.with_suffix(".tex"), out.with_suffix(".csv"), out.parent / f"{out.name}_runtime.png"]
     with atomic_write(paths[0], "w") as f:
-        mixed = f" (rows from {df['commit'].nunique()} commits)" if commits_note(df) else ""
+        mixed = f" (rows from {df['commit'].nunique()} commits)" if "commit" in df and df["commit"].nunique() > 1 else ""
         f.write(f"# {name}{mixed}\n\n{_markdown(t)}\n{notes}\n\n{about}\n\n{prov}\n")
-    header = (prov, *about.split("\n\n"), seeds_note(df, group), *(p for n in (time_cut_note(df), commits_note(df), trained_note(df)) for p in n.split("\n\n") if p))
+    header = (prov, *about.split("\n\n"), seeds_note(df, group), *(p for n in warnings for p in n.split("\n\n") if p))
     comment = "".join(f"{{c}} {line}\n" for line in header)
     with atomic_write(paths[1], "w") as f:
         f.write(comment.format(c="%") + t.style.to_latex(hrules=True, multicol_align="c"))
