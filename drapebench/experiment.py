@@ -107,14 +107,13 @@ def method_params(cfg: DictConfig, typed: set[str]) -> dict:
     return params
 
 
-def warn_untrained_shape(betas, train_cfg: dict, method_params: dict, method: str) -> list[int]:
-    """Warn (and return the indices) when test ``betas`` (S,) leave the range ``method`` was trained on:
-    ``method.params.train.beta_range`` (per component, U(-r, r)) if it sets one, else the training dataset's
-    (:func:`drapebench.body.dataset.beta_bound`)."""
+def warn_untrained_shape(betas, train_cfg: dict, own, method: str) -> list[int]:
+    """Warn (and return the indices) when test ``betas`` (S,) leave the range ``method`` was trained on: ``own``
+    (per component, the bound of the shapes it draws itself: its ``trained_beta_bound()``) if not None, else the
+    training dataset's (:func:`drapebench.body.dataset.beta_bound`)."""
     from drapebench.body.dataset import beta_bound
 
     betas = np.asarray(betas, dtype=np.float64).reshape(-1)
-    own = (method_params.get("train") or {}).get("beta_range")
     bound = np.zeros(len(betas))
     if own is not None:
         bound[: len(own)] = np.asarray(own, dtype=np.float64)[: len(betas)]
@@ -353,7 +352,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     train_s, ckpt, train_stopped, trained_at = _checkpoint(method, cfg, garment, data, train_cfg, log_dir=out)
     stages["fit_s"] = time.perf_counter() - t
     if ckpt is not None:
-        warn_untrained_shape(seq.betas, train_cfg, OmegaConf.to_container(cfg.method.params, resolve=True), cfg.method.name)
+        warn_untrained_shape(seq.betas, train_cfg, method.trained_beta_bound(), cfg.method.name)
 
     from drapebench.drape_stream import stream_drape
     from drapebench.export import input_hashes

@@ -13,7 +13,7 @@ from enum import Enum
 from typing import Any, Dict, List, Optional
 
 from hydra.core.config_store import ConfigStore
-from omegaconf import MISSING
+from omegaconf import MISSING, DictConfig, OmegaConf
 
 from drapebench.data.reference_spec import ReferenceSetSpec
 from drapebench.keys import check_known
@@ -25,7 +25,7 @@ from drapebench.reference.settings import SimSettings
 class MethodConf:
     name: str = MISSING  # row label in tables (conf/config.yaml's defaults choose the method)
     impl: Optional[str] = None  # registered implementation (methods.available()); default: name
-    params: Dict[str, Any] = field(default_factory=dict)
+    params: Dict[str, Any] = field(default_factory=dict)  # open to any key (base_config); the method's dataclass checks them
 
 
 @dataclass
@@ -209,6 +209,17 @@ def check_keys(cfg, schema: type = None, prefix: str = "") -> None:
             check_keys(cfg[key], sub, f"{prefix}{key}.")
 
 
+def base_config() -> DictConfig:
+    """:class:`Config` as the node conf/config.yaml starts from, with ``method.params`` open: ``method.params.<key>=v``
+    sets any key of a method's parameters from the command line (no ``+``) though its yaml does not name it, and the
+    method's parameter dataclass (methods/params.py: ``typed_params``) checks the keys and their values when the run
+    starts, naming an unknown key, the nearest valid one and every valid one. The flag survives the merges of the
+    method's yaml files; every other node stays closed (a typo there fails as Hydra composes the config)."""
+    cfg = OmegaConf.structured(Config)
+    cfg.method.params._set_flag("struct", False)
+    return cfg
+
+
 def register() -> None:
-    """Register the schema as ``base_config`` (used first in conf/config.yaml's defaults)."""
-    ConfigStore.instance().store(name="base_config", node=Config)
+    """Register :func:`base_config` as ``base_config`` (used first in conf/config.yaml's defaults)."""
+    ConfigStore.instance().store(name="base_config", node=base_config())

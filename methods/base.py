@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
-from typing import Any, Iterable, Iterator, Mapping
+from typing import Any, Iterable, Iterator, Mapping, Sequence
 
 import torch
 
@@ -120,6 +120,12 @@ class DrapingMethod(ABC):
     def settings_key(self) -> Any:
         """Settings a trained state depends on beyond ``cfg`` (code defaults resolved), part of the checkpoint
         key so that changing a default retrains; None (the default) when ``cfg`` says it all."""
+        return None
+
+    def trained_beta_bound(self) -> Sequence[float] | None:
+        """Per shape component k, the largest |beta_k| of the body shapes the model trains on when it draws them
+        itself (e.g. U(-r_k, r_k)); None (the default): the shapes of its training dataset
+        (:func:`drapebench.body.dataset.beta_bound`). A run warns when its test shape leaves this range."""
         return None
 
     def trained_body(self, run_body):

@@ -26,6 +26,7 @@ from drapebench.garments import garment_from_config, load_garment, make_garment
 from drapebench.garments.pins import MIN_PINS
 from drapebench.physics import Material
 from drapebench.schema import check_keys, register
+import methods
 
 ROOT = Path(__file__).resolve().parents[1]
 register()
@@ -253,10 +254,13 @@ def test_one_rule_for_betas_fewer_padded_more_or_nan_rejected(body_lowres, kick,
 
 def test_betas_outside_the_training_range_warn(caplog):
     with caplog.at_level(logging.WARNING, logger="drapebench"):
-        assert warn_untrained_shape([3.0, 0.0, 0.0, 0.0, 0.5], {"dataset": "train_small"}, {}, "gensim") == [0, 4]
+        assert warn_untrained_shape([3.0, 0.0, 0.0, 0.0, 0.5], {"dataset": "train_small"}, None, "gensim") == [0, 4]
     assert "b0=3, b4=0.5 are outside the range gensim was trained on" in caplog.text
-    assert warn_untrained_shape([1.0, 2.0], {"dataset": "train_small"}, {}, "gensim") == []
-    assert warn_untrained_shape([1.0, 2.0], {"dataset": "train_small"}, {"train": {"beta_range": [0.5, 2.0]}}, "gaps") == [0]
+    assert warn_untrained_shape([1.0, 2.0], {"dataset": "train_small"}, None, "gensim") == []
+    assert warn_untrained_shape([1.0, 2.0], {"dataset": "train_small"}, (0.5, 2.0), "gaps") == [0]
+    assert methods.get("gaps")({"train": {"beta_range": [0.5, 2.0]}}).trained_beta_bound() == (0.5, 2.0)  # what the run passes
+    assert methods.get("gaps")({}).trained_beta_bound() == (2.0, 2.0, 2.0, 2.0)  # GapsTrain's default, the code's
+    assert methods.get("gensim")({}).trained_beta_bound() is None  # GenSim's shapes are its dataset's
 
 
 def test_cuda_without_a_cuda_torch_names_the_fix(monkeypatch):

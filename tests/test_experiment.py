@@ -123,13 +123,20 @@ def test_the_run_seed_is_the_training_seed_and_a_new_seed_trains_a_new_checkpoin
 
 
 def test_gaps_reads_its_own_training_keys_per_budget_and_a_wrong_train_key_fails():
-    cpu = _compose(["method=gaps"]).method.params.train
-    assert cpu.lr_output_factor == 0.1 and cpu.output_adam_eps == 1.0 and cpu.kext_ramp_epochs == 2 and cpu.window == 3  # gaps_budget/cpu.yaml
-    assert cpu.redraw_motions and cpu.schedule.lr == 1e-3 and cpu.schedule.lr_after == 1e-4 and cpu.schedule.grad_clip == 90.0  # the paper's rates
+    import methods
+    from drapebench.experiment import method_params
+
+    def gaps_train(overrides):  # the training keys the GAPS built from a composed config reads
+        cfg = _compose(overrides)
+        return methods.get(cfg.method.impl)(method_params(cfg, set())).p["train"]
+
+    cpu = gaps_train(["method=gaps"])
+    assert cpu["lr_output_factor"] == 0.1 and cpu["output_adam_eps"] == 1.0 and cpu["kext_ramp_epochs"] == 2 and cpu["window"] == 3  # gaps_budget/cpu.yaml
+    assert cpu["redraw_motions"] and cpu["schedule"]["lr"] == 1e-3 and cpu["schedule"]["lr_after"] == 1e-4 and cpu["schedule"]["grad_clip"] == 90.0  # the paper's rates
     assert _compose(["method=gaps"]).train.dataset == "train_gaps"
     for ablation in ("gaps_kext1", "gaps_no_inext", "snug_like", "ncs_like"):
-        paper = _compose([f"method={ablation}", "train=paper"]).method.params.train
-        assert paper.lr_output_factor == 1.0 and paper.kext_ramp_epochs == 100, ablation
+        paper = gaps_train([f"method={ablation}", "train=paper"])  # no gaps_budget/paper.yaml: GapsTrain's defaults
+        assert paper["lr_output_factor"] == 1.0 and paper["kext_ramp_epochs"] == 100 and paper["window"] == 3, ablation
     with pytest.raises(ConfigCompositionException) as err:
         _compose(["train.kext_ramp_epochs=3"])  # a GAPS key is not a budget key
     assert "Key 'kext_ramp_epochs' not in 'TrainConf'" in str(err.value.__cause__)
@@ -228,9 +235,29 @@ def test_a_bad_method_parameter_fails_before_the_scene_and_its_reference_are_bui
 
     monkeypatch.setattr(drapebench.experiment.Scene, "from_config", built)
     with pytest.raises(ValueError, match=r"unknown gaps train parameter\(s\) \['windw'\] \(method.params.train\) \(did you mean 'window'\?\)"):
-        run(_compose(["method=gaps", "+method.params.train.windw=4", *FAST]), tmp_path / "run")
+        run(_compose(["method=gaps", "method.params.train.windw=4", *FAST]), tmp_path / "run")  # no "+" needed
     with pytest.raises(ValueError, match="gaps parameter bending must be one of blend, flat, template, not 'flt'"):
         run(_compose(["method=gaps", "+method.params.bending=flt", *FAST]), tmp_path / "run2")
+
+
+def test_any_method_parameter_is_set_from_the_command_line_without_a_plus_and_other_nodes_stay_closed():
+    """A key the method's yaml does not name (GAPS's collision_distance, a GapsTrain key, GenSim's arap_iterations) is set
+    with ``method.params.<key>=v`` and reaches the method's typed parameters; the defaults the yaml leaves out are
+    the dataclass's; a typo elsewhere still fails as Hydra composes the config."""
+    from hydra.errors import ConfigCompositionException
+
+    import methods
+    from drapebench.experiment import method_params
+
+    cfg = _compose(["method=gaps", "method.params.collision_distance=vertex", "method.params.train.hidden_init_std=0.2"])
+    gaps = methods.get("gaps")(method_params(cfg, set()))
+    assert gaps.p["collision_distance"] == "vertex" and gaps.p["train"]["hidden_init_std"] == 0.2
+    assert gaps.p["train"]["window"] == 3 and gaps.p["canonical"] == "relaxed"  # GapsTrain's default; gaps.yaml's own value
+    assert gaps.p["train"]["lr_output_factor"] == 0.1  # train=cpu's gaps_budget/cpu.yaml
+    gensim = methods.get("gensim")(method_params(_compose(["method=gensim", "method.params.arap_iterations=7"]), set()))
+    assert gensim.p["arap_iterations"] == 7
+    with pytest.raises(ConfigCompositionException, match="garment.sede"):
+        _compose(["method=gaps", "garment.sede=1"])
 
 
 def test_interrupted_run_leaves_no_complete_looking_file(tmp_path, monkeypatch):

@@ -40,11 +40,11 @@ from drapebench.train.trainer import Step
 
 def budget_params(budget: str) -> dict:
     """GAPS's ``method.params`` under a training preset: conf/method/gaps.yaml's params with the preset's
-    conf/method/gaps_budget/<budget>.yaml (if any) merged over its ``train`` keys."""
+    conf/method/gaps_budget/<budget>.yaml (if any) as its ``train`` keys (the rest: GapsTrain's defaults)."""
     base = OmegaConf.to_container(OmegaConf.load(PROJECT_ROOT / "conf/method/gaps.yaml"))["params"]
     path = PROJECT_ROOT / f"conf/method/gaps_budget/{budget}.yaml"
     if path.exists():
-        base["train"].update(OmegaConf.to_container(OmegaConf.load(path)))
+        base.setdefault("train", {}).update(OmegaConf.to_container(OmegaConf.load(path)))
     return base
 
 
@@ -54,7 +54,7 @@ def diagnose(garment: str, body: str, budget: str = "cpu", epoch: int | None = N
     (None: the end of the budget's ramp), and each term's gradient on the network's parameter groups there
     (:func:`parameter_gradients`)."""
     params = budget_params(budget)
-    params["train"]["schedule"] = {}  # no step is taken: the budget's rates and epochs do not matter
+    params.setdefault("train", {})["schedule"] = {}  # no step is taken: the budget's rates and epochs do not matter
     m = methods.get("gaps")(params)
     b = load_body(body)
     g = make_garment(garment, b)

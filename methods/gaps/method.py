@@ -122,6 +122,10 @@ class GAPS(DrapingMethod):
         return x
 
     # ------------------------------------------------------------------ training
+    def trained_beta_bound(self) -> tuple[float, ...]:
+        """``train.beta_range``: training draws beta_k ~ U(-r_k, r_k) on its first components (0 after)."""
+        return tuple(self.p["train"]["beta_range"])
+
     def fit(self, data, train_cfg=None) -> FitReport:
         """Self-supervised training on ``data.train_sequences`` with :func:`drapebench.train.train` under the
         budget ``train_cfg`` (``conf/train``; its ``log_dir`` entry, if any, receives ``losses.csv``)."""
