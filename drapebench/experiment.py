@@ -30,7 +30,7 @@ from drapebench.errors import DrapeFailed
 from drapebench.garments.factory import garment_label
 from drapebench.results import METRICS, environment, git_commit, headline
 from drapebench.scene import Scene
-from drapebench.schema import check_keys
+from drapebench.schema import check_keys, choice
 from drapebench.tracker import track_run
 from drapebench.train.checkpoint import write_losses
 
@@ -283,7 +283,7 @@ def run(cfg: DictConfig, out_dir: str | Path | None = None) -> dict:
         with forcing(bool(cfg.force)):
             record = _run(cfg, out)
     except DrapeFailed as err:
-        if getattr(cfg.on_failure, "name", cfg.on_failure) != "record":
+        if choice(cfg.on_failure) != "record":
             raise
         record = failure_record(cfg, err)
         write_json(out / "failed.json", record)
@@ -295,7 +295,7 @@ def run(cfg: DictConfig, out_dir: str | Path | None = None) -> dict:
 def failure_record(cfg: DictConfig, err: BaseException) -> dict:
     """The ``failed.json`` record of a run of ``cfg`` that raised ``err``: the scene, the error and its message."""
     return {"status": "failed", "method": cfg.method.name, "garment": garment_label(cfg.garment), "motion": cfg.motion.name,
-            "body": cfg.body.name, "shape": shape_label(cfg.motion.betas), "dtype": getattr(cfg.dtype, "name", str(cfg.dtype)),
+            "body": cfg.body.name, "shape": shape_label(cfg.motion.betas), "dtype": choice(cfg.dtype),
             "seed": int(cfg.seed), "train_seed": int(cfg.train.seed), "device": str(cfg.device), "error": type(err).__name__,
             "message": str(err), "experiment": cfg.experiment_name, "commit": git_commit()}  # fmt: skip
 
@@ -305,10 +305,10 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     from drapebench.body.model import torch_device
 
     t_start = time.perf_counter()
-    viz = getattr(cfg.viz, "name", cfg.viz)  # a VizMode member once validated by the schema
+    viz = choice(cfg.viz)
     if viz not in ("rerun", "none"):
         raise ValueError(f"viz must be 'rerun' or 'none', not {viz!r}")
-    export = getattr(cfg.export, "name", cfg.export)  # an ExportFormat member once validated by the schema
+    export = choice(cfg.export)
     if export == "usd":
         from drapebench.export import require_usd
 

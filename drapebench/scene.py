@@ -11,12 +11,14 @@ from functools import cache
 import torch
 from omegaconf import DictConfig, OmegaConf
 
+from drapebench.schema import choice
+
 log = logging.getLogger("drapebench")
 
 
 def config_dtype(cfg: DictConfig) -> torch.dtype:
     """The torch dtype a config's ``dtype`` names (a Precision member once validated by the schema, or its name)."""
-    return getattr(torch, getattr(cfg.dtype, "name", cfg.dtype))
+    return getattr(torch, choice(cfg.dtype))
 
 
 @dataclass

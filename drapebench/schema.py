@@ -196,6 +196,12 @@ class Config:
     experiment_name: str = "default"
 
 
+def choice(value) -> str:
+    """The name of a config choice: an Enum member's name once the schema has validated the config (``cfg.viz`` is a
+    :class:`VizMode`), the value as a string in a config that was not composed against it (e.g. a plain mapping)."""
+    return value.name if isinstance(value, Enum) else str(value)
+
+
 def check_keys(cfg, schema: type = None, prefix: str = "") -> None:
     """Raise ValueError naming the first key of ``cfg`` (a DictConfig or mapping) that ``schema`` (default
     :class:`Config`) does not have, with the valid keys: Hydra's ``+key=value`` adds keys the schema lacks,

@@ -33,6 +33,7 @@ from pathlib import Path
 from omegaconf import DictConfig, OmegaConf
 
 from drapebench.cache import data_dir
+from drapebench.schema import choice
 
 log = logging.getLogger("drapebench")
 
@@ -173,7 +174,7 @@ def track_run(cfg: DictConfig, out: Path, record: dict) -> str | None:
     """:func:`log_run` when ``cfg.tracker.name`` is mlflow (None for none); a failure to log is a warning, never an
     error. Returns the MLflow run id, or None."""
     tracker = cfg.get("tracker")
-    if tracker is None or getattr(tracker.name, "name", tracker.name) == "none":
+    if tracker is None or choice(tracker.name) == "none":
         return None
     try:
         run_id = log_run(cfg, Path(out), record, tracker.uri)
