@@ -1,5 +1,6 @@
 """Structured-config schema of ``conf/``: typos and wrong types fail when Hydra composes the config, and
-keys added with ``+`` that nothing reads fail in :func:`check_keys` before a run starts. The nodes of the domain's
+keys added with ``+`` that nothing reads fail in :func:`check_keys` before a run starts; ``method.params`` is open
+(:func:`base_config`): its keys are checked by the method's own dataclass as the run starts. The nodes of the domain's
 own records (``material``, ``reference``, ``data``) are made from their dataclasses (:func:`node`), not copied."""
 
 from __future__ import annotations
@@ -222,7 +223,7 @@ def base_config() -> DictConfig:
     starts, naming an unknown key, the nearest valid one and every valid one. The flag survives the merges of the
     method's yaml files; every other node stays closed (a typo there fails as Hydra composes the config)."""
     cfg = OmegaConf.structured(Config)
-    cfg.method.params._set_flag("struct", False)
+    OmegaConf.set_struct(cfg.method.params, False)
     return cfg
 
 

@@ -17,6 +17,7 @@ import pytest
 import torch
 from hydra import compose, initialize_config_dir
 
+import methods
 from drapebench.body import BodySequence, load_body, make_sequence
 from drapebench.body.motion_file import load_motion
 from drapebench.body.motion_source import sequence_from_config
@@ -26,7 +27,6 @@ from drapebench.garments import garment_from_config, load_garment, make_garment
 from drapebench.garments.pins import MIN_PINS
 from drapebench.physics import Material
 from drapebench.schema import check_keys, register
-import methods
 
 ROOT = Path(__file__).resolve().parents[1]
 register()

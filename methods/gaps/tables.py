@@ -4,8 +4,8 @@ through :mod:`drapebench.plugins`."""
 
 from drapebench.table_specs import ONE_THREAD, SEEDS, Sweep, TableSpec, untrained
 
-NO_INEXT_OPTIMUM = ("method=gaps_optimum", "method.name=gaps_no_inext_optimum", "+method.params.inextensibility_weight=0.0",
-                    "+method.params.relax_inextensibility_weight=2.0e+8")  # fmt: skip
+NO_INEXT_OPTIMUM = ("method=gaps_optimum", "method.name=gaps_no_inext_optimum", "method.params.inextensibility_weight=0.0",
+                    "method.params.relax_inextensibility_weight=2.0e+8")  # fmt: skip
 
 # the held-out tables: vertex error, strain and collisions against the untrained skinning, and the loss gap closed
 HELDOUT_METRICS = ("vertex_error_mm", "vertex_error_mm@untrained", "eps_e", "eps_e@untrained", "eps_c", "eps_c@postprocessed", "loss_gap_closed")
@@ -25,7 +25,7 @@ TABLES = [
               sweeps=(Sweep("gaps_table2", (SEEDS, ONE_THREAD)),
                       *untrained("gaps_table2", ("gaps",)),
                       Sweep("gaps_table2", ("method=gaps_optimum", ONE_THREAD)),
-                      Sweep("gaps_table2", ("method=gaps_optimum", "method.name=gaps_kext1_optimum", "+method.params.kext=one", ONE_THREAD)),
+                      Sweep("gaps_table2", ("method=gaps_optimum", "method.name=gaps_kext1_optimum", "method.params.kext=one", ONE_THREAD)),
                       Sweep("gaps_table2", (*NO_INEXT_OPTIMUM, ONE_THREAD))),
               methods=("gaps", "gaps_kext1", "gaps_no_inext", "gaps_untrained", "gaps_optimum", "gaps_kext1_optimum",
                        "gaps_no_inext_optimum")),  # fmt: skip

@@ -34,7 +34,7 @@ TABLES = [
     TableSpec("gensim_pen", "GenSim Fig. 2 / 11: what PEN adds to its ARAP stage (energy, ε_c, ε_e, displacement), with "
               "one-step ARAP (nitr = 1), PEN untrained and lbs as controls", ("energy_j", "eps_c", "eps_e", "smoothness", "pen_mm", "pen_p99_mm"),
               sweeps=(Sweep("gensim_pen", (SEEDS, ONE_THREAD)), Sweep("gensim_pen", ("method=lbs,gensim_optimum",)),
-                      Sweep("gensim_pen", ("method=gensim_arap", "method.name=gensim_arap_nitr1", "+method.params.arap_steps=1")),
+                      Sweep("gensim_pen", ("method=gensim_arap", "method.name=gensim_arap_nitr1", "method.params.arap_steps=1")),
                       *untrained("gensim_pen", ("gensim",), SEEDS, ONE_THREAD)),
               methods=("gensim_arap", "gensim_arap_nitr1", "gensim_untrained", "gensim", "gensim_optimum", "lbs")),  # fmt: skip
     TableSpec("gensim_fig10", "GenSim Fig. 10: the loss ablation V1 / V2 / V3 on a short skirt beside the ARAP stage",

@@ -45,7 +45,7 @@ def test_unknown_keys_and_choices_are_named_with_their_path_and_the_valid_ones()
 
 
 def test_a_partial_schedule_changes_only_the_keys_given():
-    """``+method.params.vae.schedule={epochs: 5}`` keeps the VAE's other schedule values (it replaced them all before)."""
+    """``method.params.vae.schedule={epochs: 5}`` keeps the VAE's other schedule values (it replaced them all before)."""
     from methods.vae.config import vae_params
 
     default = vae_params(None)["vae"]["schedule"]
