@@ -4,7 +4,8 @@ Outputs in the Hydra run directory: ``metrics.json`` (one flat record), ``frames
 frame), ``prediction.h5`` (written as the drape is made, ``chunk_frames`` frames at a time for a method that streams:
 drapebench.drape_stream), ``drape.rrd`` (unless ``viz=none``), ``export/`` (with ``export=usd|obj|pc2``:
 drapebench.export), ``config.yaml`` (resolved, written first: it says whose folder it is) and ``env.json``
-(commit, package versions, device, threads), and ``losses.csv`` for a learned method (drapebench.train). Every
+(commit, package versions, device, threads), and for a learned method ``losses.csv`` (drapebench.train) and
+``settings.json`` (its parameters resolved, the code's defaults included: what ``config.yaml`` leaves to them). Every
 file is written atomically. The finished run is then logged to MLflow (drapebench.tracker; ``tracker=none``: not). A folder that holds another run's results is refused; an earlier run of the same
 config is cleared (logged).
 """
@@ -236,7 +237,7 @@ def _evaluate(cfg: DictConfig, garment, seq, body, prediction, reference, materi
 
 
 RUN_FILES = ("metrics.json", "failed.json", "frames.csv", "prediction.h5", "drape.rrd", "losses.csv", "evaluations.csv",
-             "losses.png", "export", "env.json", "config.yaml")  # what a run writes into its folder (losses.png: the report's; export/: a folder)
+             "losses.png", "export", "env.json", "settings.json", "config.yaml")  # what a run writes into its folder (losses.png: the report's; export/: a folder)
 
 
 class RunFolderInUse(ValueError):
@@ -388,6 +389,8 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     with atomic_write(out / "frames.csv", "w") as f:
         frames.to_csv(f, index=False)
     write_json(out / "env.json", environment(cfg.device))
+    if method.settings_key() is not None:  # what the model was built and trained with, its code's defaults included
+        write_json(out / "settings.json", method.settings_key())
     if viz == "rerun":
         from drapebench.geometry.sdf import inside_body
         from drapebench.viz import record_drape

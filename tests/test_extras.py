@@ -69,6 +69,9 @@ def test_the_package_imports_and_gaps_trains_and_is_evaluated_without_the_extras
     assert rec["method"] == "gaps" and rec["train_s"] > 0 and all(math.isfinite(rec[k]) for k in ("eps_e", "eps_c", "penetration_mm"))
     assert "take the exact libigl path" in (out / "run.log").read_text()  # eps_c without warp's BVH
     assert (out / "losses.csv").read_text().strip().count("\n") == 2  # train.steps=2 as typed: not GAPS's own schedule
+    settings = json.loads((out / "settings.json").read_text())  # the parameters resolved: gaps.yaml leaves most to GapsParams
+    assert settings["train"]["window"] == 3 and settings["rbf_k"] == 0.25 and settings["canonical"] == "template"
+    assert "hidden_init_std" not in (out / "config.yaml").read_text() and settings["train"]["hidden_init_std"] == 0.1
     p = subprocess.run([sys.executable, str(ROOT / "run.py"), *scene[:1], "viz=rerun", f"hydra.run.dir={tmp_path / 'viz'}"],
                        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)  # fmt: skip
     assert p.returncode != 0 and "pip install 'drapebench[viz]'" in p.stderr
