@@ -389,8 +389,9 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     with atomic_write(out / "frames.csv", "w") as f:
         frames.to_csv(f, index=False)
     write_json(out / "env.json", environment(cfg.device))
-    if method.settings_key() is not None:  # what the model was built and trained with, its code's defaults included
-        write_json(out / "settings.json", method.settings_key())
+    settings = method.settings_key()  # what the model was built and trained with, its code's defaults included
+    if settings is not None:
+        write_json(out / "settings.json", settings)
     if viz == "rerun":
         from drapebench.geometry.sdf import inside_body
         from drapebench.viz import record_drape
