@@ -28,7 +28,7 @@ def test_given_keys_update_the_defaults_at_every_depth_and_keep_their_values():
     p = typed_params(Outer, {"kind": "y", "free": {"any": 1}, "inner": {"size": 2, "schedule": {"lr": 0.5}}}, "toy")
     assert p == Outer(kind="y", free={"any": 1}, inner=Inner(size=2, schedule={"epochs": 3, "lr": 0.5}))
     assert type(p.inner.size) is int  # kept as given: the parameters hash into checkpoint keys as they were typed
-    assert typed_params(Outer, None, "toy") == Outer() and typed_params(Outer, {"inner": None}, "toy") == Outer()
+    assert typed_params(Outer, None, "toy") == Outer() and typed_params(Outer, {"inner": {}}, "toy") == Outer()
 
 
 def test_unknown_keys_and_choices_are_named_with_their_path_and_the_valid_ones():
@@ -51,3 +51,29 @@ def test_a_partial_schedule_changes_only_the_keys_given():
     default = vae_params(None)["vae"]["schedule"]
     changed = vae_params({"vae": {"schedule": {"epochs": 5}}})["vae"]["schedule"]
     assert changed == {**default, "epochs": 5} and default["batch_size"] == 32 and default["epochs"] == 60
+
+
+@pytest.mark.parametrize("given, message", [
+    ({"inner": {"size": "abc"}}, r"toy parameter inner.size must be a float, not 'abc' \(method.params.inner.size=...\)"),
+    ({"inner": {"size": float("nan")}}, r"inner.size must be a float, not nan"),
+    ({"inner": {"size": True}}, r"inner.size must be a float, not True"),
+    ({"grid": 2.0}, r"grid must be a list of float values, not 2.0"),
+    ({"grid": [1.0, "a"]}, r"grid must be a list of float values"),
+    ({"inner": {"schedule": {"epochs": 2.5}}}, r"inner.schedule.epochs must be an int, not 2.5"),  # typed as conf/train's keys
+    ({"inner": {"schedule": {"lr": "fast"}}}, r"inner.schedule.lr must be a float, not 'fast'"),
+    ({"inner": {"schedule": None}}, r"inner.schedule must be a mapping of keys, not None"),
+    ({"inner": 5}, r"toy parameter inner is a section of keys \(mode, size, schedule\), not 5: set its keys one by one \(method.params.inner.<key>=...\)"),
+    ({"inner": None}, r"toy parameter inner is a section of keys"),  # not silently the defaults: a preset's keys would be lost
+])
+def test_a_value_of_another_type_than_its_field_is_named_with_its_key_and_what_it_takes(given, message):
+    with pytest.raises(ValueError, match=message):
+        typed_params(Outer, given, "toy")
+
+
+def test_a_mapping_entry_takes_the_type_of_its_default_and_steps_may_be_none():
+    from methods.gensim.config import gensim_params
+
+    assert gensim_params({"weights": {"bending": 2}})["weights"]["bending"] == 2  # an int stands for a float
+    with pytest.raises(ValueError, match=r"gensim parameter weights.bending must be a float, not 'abc'"):
+        gensim_params({"weights": {"bending": "abc"}})
+    assert typed_params(Outer, {"inner": {"schedule": {"steps": None, "grad_clip": 1}}}, "toy").inner.schedule["steps"] is None
