@@ -265,7 +265,7 @@ def write_tables(names: list, root: Path, out: Path, quick: bool = False, say=pr
 def main(argv=None) -> int:
     tables = specs()
     parser = argparse.ArgumentParser(description="Run every committed table's experiments and write the tables and claims.md.")
-    parser.add_argument("--tables", type=lambda t: [x for x in t.split(",") if x], default=list(tables),
+    parser.add_argument("--tables", type=lambda t: [x.strip() for x in t.split(",") if x.strip()], default=list(tables),
                         help=f"comma-separated tables (default: all): {', '.join(tables)}")
     parser.add_argument("--quick", action="store_true", help="every table's pipeline on a tiny scene, untrained, into outputs/reproduce_quick")
     parser.add_argument("--out", type=Path, help="where the tables go (default: reports/, or outputs/reproduce_quick/reports with --quick)")
@@ -274,6 +274,10 @@ def main(argv=None) -> int:
                         "model or a reference set run on one worker in turn (default 1)")
     parser.add_argument("--dry-run", action="store_true", help="list the runs and whether each has finished, and per method the trainings the unfinished ones need and how many are cached; run nothing")
     args = parser.parse_args(argv)
+    if not args.tables:
+        parser.error(f"--tables: no table named; leave --tables out for all of them, or name some: {', '.join(tables)}")
+    if args.jobs < 1:
+        parser.error(f"--jobs: at least 1, got {args.jobs}")
     unknown = [t for t in args.tables if t not in tables]
     if unknown:
         parser.error(f"--tables: no table {', '.join(unknown)}; tables: {', '.join(tables)}")
@@ -296,8 +300,6 @@ def main(argv=None) -> int:
               "checkpoint cache already (the time of each training: the README's budget table):")
         print("\n".join(summary(todo)))
         return 0
-    if args.jobs < 1:
-        parser.error(f"--jobs: at least 1, got {args.jobs}")
     failed = run_all(jobs, at, workers=args.jobs)
     paths = write_tables([n for n in names if n in args.tables], root, out, args.quick)
     from drapebench.claims import write_claims

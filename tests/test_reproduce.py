@@ -76,6 +76,18 @@ def test_quick_writes_a_table_and_claims_and_a_restart_reruns_nothing(tmp_path, 
     assert not finished(job, "other") and main([*args, "--dry-run"]) == 0 and "todo  baseline" in capsys.readouterr().out
 
 
+@pytest.mark.parametrize("argv, said", [
+    (["--tables", "", "--dry-run"], "--tables: no table named; leave --tables out"),  # would have rewritten claims.md alone
+    (["--tables", ",", "--dry-run"], "--tables: no table named"),
+    (["--tables", "baseline", "--dry-run", "--jobs", "0"], "--jobs: at least 1, got 0"),
+    (["--tables", "baseline, nosuch", "--dry-run"], "--tables: no table nosuch;"),  # spaces after commas are not part of a name
+])
+def test_bad_arguments_are_refused_before_anything_runs_or_is_written(argv, said, capsys):
+    with pytest.raises(SystemExit):
+        main(argv)
+    assert said in capsys.readouterr().err
+
+
 def test_a_table_with_runs_missing_is_not_written(tmp_path, monkeypatch):
     """A cell averaged over fewer scenes than planned would change silently: the committed table stays instead."""
     monkeypatch.setattr(reproduce, "commit", lambda: "0" * 40)
