@@ -1,10 +1,14 @@
 """The one check of given keys against the keys something reads: an unknown key is a ValueError naming it, the
-closest valid key and every valid one, so a typo in a config or a parameter never passes silently."""
+closest valid key and every valid one, so a typo in a config or a parameter never passes silently; and the check of
+a given value against its field's type (:func:`check_type`), so a string for an int fails where it is read."""
 
 from __future__ import annotations
 
 import difflib
-from typing import Iterable
+import math
+import types
+import typing
+from typing import Iterable, Literal, Mapping
 
 
 def check_known(given: Iterable, valid: Iterable, what: str, where: str = "") -> None:
@@ -17,3 +21,68 @@ def check_known(given: Iterable, valid: Iterable, what: str, where: str = "") ->
     close = difflib.get_close_matches(str(unknown[0]), [str(v) for v in valid], n=1)
     hint = f" (did you mean {close[0]!r}?)" if close else ""
     raise ValueError(f"unknown {what}(s) {unknown}{' ' + where if where else ''}{hint}; valid: {valid}")
+
+
+def check_type(value, hint, what: str, key: str, where: str = "") -> None:
+    """Raise ValueError unless ``value`` fits the type ``hint`` of ``key`` (e.g. "train.lr"): a ``Literal``'s
+    choices, bool, int (not a bool), float (an int too; not NaN), str, ``X | None``, ``tuple[X, ...]`` (a list
+    too), dict (any mapping). Worded "<what> <key> must be <type in words>, not <value> [(<where><key>=...)]"
+    (``what`` e.g. "gaps parameter", ``where`` the key's config prefix, e.g. "method.params.")."""
+    if typing.get_origin(hint) is Literal:
+        if value not in typing.get_args(hint):
+            raise ValueError(f"{what} {key} must be one of {', '.join(map(str, typing.get_args(hint)))}, not {value!r}")
+        return
+    if not _fits(value, hint):
+        raise ValueError(f"{what} {key} must be {_describe(hint)}, not {value!r}{f' ({where}{key}=...)' if where else ''}")
+
+
+def _fits(value, hint) -> bool:
+    """Whether ``value`` fits the type ``hint`` (:func:`check_type`'s rules)."""
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin in (typing.Union, types.UnionType):
+        return any(_fits(value, h) for h in args)
+    if origin is Literal:
+        return value in args
+    if hint is type(None):
+        return value is None
+    if hint is bool:
+        return isinstance(value, bool)
+    if hint is int:
+        return isinstance(value, int) and not isinstance(value, bool)
+    if hint is float:
+        return _is_number(value) and not math.isnan(value)
+    if hint is tuple or origin is tuple:
+        if not isinstance(value, (list, tuple)):
+            return False
+        if len(args) == 2 and args[1] is Ellipsis:
+            return all(_fits(v, args[0]) for v in value)
+        return not args or len(value) == len(args) and all(map(_fits, value, args))
+    if hint is dict or origin is dict:
+        return isinstance(value, Mapping)
+    return isinstance(value, hint) if isinstance(hint, type) else True
+
+
+def hint_of(default):
+    """The type an entry whose default is ``default`` takes (for :func:`check_type`): float for a number, the
+    default's own type for a bool or str, None (anything) otherwise."""
+    return float if _is_number(default) else type(default) if isinstance(default, (bool, str)) else None
+
+
+def _is_number(value) -> bool:
+    """Whether ``value`` is an int or a float (not a bool)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _describe(hint) -> str:
+    """The type ``hint`` in words: "an int", "a float or None", "a list of float values"."""
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin in (typing.Union, types.UnionType):
+        return " or ".join(_describe(h) for h in args)
+    if hint is type(None):
+        return "None"
+    if hint is tuple or origin is tuple:
+        return f"a list of {_describe(args[0]).split(' ', 1)[1]} values" if len(args) == 2 and args[1] is Ellipsis else "a list"
+    if hint is dict or origin is dict:
+        return "a mapping of keys"
+    name = getattr(hint, "__name__", str(hint))
+    return f"{'an' if name[0] in 'aeiou' else 'a'} {name}"

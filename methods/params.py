@@ -11,12 +11,10 @@ parameters hash into checkpoint keys as before. A field's ``metadata["keys"]`` l
 from __future__ import annotations
 
 import dataclasses
-import math
-import types
 import typing
-from typing import Any, Literal, Mapping
+from typing import Any, Mapping
 
-from drapebench.keys import check_known
+from drapebench.keys import check_known, check_type, hint_of
 from drapebench.schema import TrainConf
 
 TRAIN_KEYS = tuple(f.name for f in dataclasses.fields(TrainConf))  # what a method's ``schedule`` may set
@@ -45,79 +43,14 @@ def typed_params(cls: type, cfg: Mapping[str, Any] | None, method: str, section:
             defaults = f.default_factory()
             entry_hints = typing.get_type_hints(f.metadata["types"]) if "types" in f.metadata else {}
             for key, entry in value.items():
-                hint = entry_hints.get(key, _hint_of(defaults.get(key)))
+                hint = entry_hints.get(key, hint_of(defaults.get(key)))
                 if hint is not None:
-                    check_type(entry, hint, method, f"{path}.{key}")
+                    check_type(entry, hint, f"{method} parameter", f"{path}.{key}", "method.params.")
             value = {**defaults, **value}
         else:
-            check_type(value, hint, method, path)
+            check_type(value, hint, f"{method} parameter", path, "method.params.")
         values[f.name] = value
     return cls(**values)
-
-
-def check_type(value, hint, method: str, path: str) -> None:
-    """Raise ValueError unless ``value`` fits the type ``hint`` of the parameter ``path`` (e.g. "train.lr") of
-    ``method``: a ``Literal``'s choices, bool, int (not a bool), float (an int too; not NaN), str, ``X | None``,
-    ``tuple[X, ...]`` (a list too), dict (any mapping); the message names the key as typed and what it takes. A
-    mapping field's entries are checked against ``metadata["types"]``, else against the type of their default."""
-    if typing.get_origin(hint) is Literal:
-        if value not in typing.get_args(hint):
-            raise ValueError(f"{method} parameter {path} must be one of {', '.join(map(str, typing.get_args(hint)))}, not {value!r}")
-        return
-    if not _fits(value, hint):
-        raise ValueError(f"{method} parameter {path} must be {_describe(hint)}, not {value!r} (method.params.{path}=...)")
-
-
-def _fits(value, hint) -> bool:
-    """Whether ``value`` fits the type ``hint`` (:func:`check_type`'s rules)."""
-    origin, args = typing.get_origin(hint), typing.get_args(hint)
-    if origin in (typing.Union, types.UnionType):
-        return any(_fits(value, h) for h in args)
-    if origin is Literal:
-        return value in args
-    if hint is type(None):
-        return value is None
-    if hint is bool:
-        return isinstance(value, bool)
-    if hint is int:
-        return isinstance(value, int) and not isinstance(value, bool)
-    if hint is float:
-        return _is_number(value) and not math.isnan(value)
-    if hint is tuple or origin is tuple:
-        if not isinstance(value, (list, tuple)):
-            return False
-        if len(args) == 2 and args[1] is Ellipsis:
-            return all(_fits(v, args[0]) for v in value)
-        return not args or len(value) == len(args) and all(map(_fits, value, args))
-    if hint is dict or origin is dict:
-        return isinstance(value, Mapping)
-    return isinstance(value, hint) if isinstance(hint, type) else True
-
-
-def _hint_of(default):
-    """The type a mapping entry whose default is ``default`` takes: float for a number, the default's own type for a
-    bool or str, None (anything) otherwise."""
-    return float if _is_number(default) else type(default) if isinstance(default, (bool, str)) else None
-
-
-def _is_number(value) -> bool:
-    """Whether ``value`` is an int or a float (not a bool)."""
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
-def _describe(hint) -> str:
-    """The type ``hint`` in words: "an int", "a float or None", "a list of float values"."""
-    origin, args = typing.get_origin(hint), typing.get_args(hint)
-    if origin in (typing.Union, types.UnionType):
-        return " or ".join(_describe(h) for h in args)
-    if hint is type(None):
-        return "None"
-    if hint is tuple or origin is tuple:
-        return f"a list of {_describe(args[0]).split(' ', 1)[1]} values" if len(args) == 2 and args[1] is Ellipsis else "a list"
-    if hint is dict or origin is dict:
-        return "a mapping of keys"
-    name = getattr(hint, "__name__", str(hint))
-    return f"{'an' if name[0] in 'aeiou' else 'a'} {name}"
 
 
 def params_dict(cls: type, cfg: Mapping[str, Any] | None, method: str) -> dict:

@@ -1,8 +1,11 @@
-"""drapebench.keys.check_known: the one check of given keys against the keys something reads."""
+"""drapebench.keys: check_known, the one check of given keys against the keys something reads, and check_type, the
+one check of a given value against its field's type."""
+
+import typing
 
 import pytest
 
-from drapebench.keys import check_known
+from drapebench.keys import check_known, check_type
 
 
 def test_an_unknown_key_is_named_with_the_closest_valid_one_and_every_valid_one():
@@ -58,3 +61,37 @@ def test_composing_a_config_imports_no_torch():
     probe = "import sys, drapebench.schema; print(sorted(m for m in ('torch', 'numpy', 'warp') if m in sys.modules))"
     p = subprocess.run([sys.executable, "-c", probe], cwd=Path(__file__).resolve().parent.parent, capture_output=True, text=True, timeout=120)
     assert p.returncode == 0 and p.stdout.strip() == "[]", p.stdout + p.stderr[-2000:]
+
+
+@pytest.mark.parametrize("value, hint, message", [
+    ("abc", int, r"^toy setting n must be an int, not 'abc' \(method.params.n=...\)$"),
+    (True, int, "must be an int, not True"),  # a bool is not a count
+    (2.5, int, "must be an int, not 2.5"),
+    (float("nan"), float, "must be a float, not nan"),
+    ([1, "x"], tuple[int, ...], "must be a list of int values"),
+    (None, float, "must be a float, not None"),
+    ("big", float | None, "must be a float or None, not 'big'"),
+    ("c", typing.Literal["a", "b"], r"^toy setting n must be one of a, b, not 'c'$"),
+    (3, dict, "must be a mapping of keys, not 3"),
+])
+def test_a_value_of_another_type_is_named_with_its_key_and_what_it_takes(value, hint, message):
+    with pytest.raises(ValueError, match=message):
+        check_type(value, hint, "toy setting", "n", "method.params.")
+
+
+@pytest.mark.parametrize("value, hint", [(3, float), (2, int), (None, float | None), ([1, 2], tuple[int, ...]), ((1.0,), tuple[float, ...]),
+                                         ("a", typing.Literal["a", "b"]), ({"k": 1}, dict), (False, bool), (float("inf"), float)])
+def test_a_value_of_its_type_passes(value, hint):
+    check_type(value, hint, "toy setting", "n")
+
+
+def test_a_reference_or_pbs_setting_of_another_type_is_named_before_a_simulation():
+    """``method=pbs method.params.substeps=abc`` said only "invalid literal for int()"; the simulator's settings
+    now name the key (the pbs method builds them as it starts)."""
+    from drapebench.reference.settings import SimSettings
+
+    with pytest.raises(ValueError, match="^reference setting substeps must be an int, not 'abc'$"):
+        SimSettings.for_solver("vbd", substeps="abc")
+    with pytest.raises(ValueError, match="reference setting retry_substeps must be a list of int values, not 5"):
+        SimSettings.for_solver("vbd", retry_substeps=5)
+    assert SimSettings.for_solver("style3d", retry_substeps=[8]).retry_substeps == (8,)  # a list stands for a tuple

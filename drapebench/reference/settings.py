@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import typing
 from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 
 import yaml
 
-from drapebench.keys import check_known
+from drapebench.keys import check_known, check_type
 
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf" / "reference"
 SOLVERS = ("vbd", "style3d")
@@ -39,6 +40,9 @@ class SimSettings:
     retry_substeps: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
+        hints = typing.get_type_hints(type(self))
+        for f in fields(self):
+            check_type(getattr(self, f.name), hints[f.name], "reference setting", f.name)
         object.__setattr__(self, "retry_substeps", tuple(int(n) for n in self.retry_substeps or ()))
         if any(n < 1 for n in self.retry_substeps):
             raise ValueError(f"reference retry_substeps must all be >= 1, got {list(self.retry_substeps)}")
