@@ -27,7 +27,7 @@ def check_type(value, hint, what: str, key: str, where: str = "") -> None:
     """Raise ValueError unless ``value`` fits the type ``hint`` of ``key`` (e.g. "train.lr"): a ``Literal``'s
     choices, bool, int (not a bool), float (an int too; not NaN), str, ``X | None``, ``tuple[X, ...]`` (a list
     too), dict (any mapping). Worded "<what> <key> must be <type in words>, not <value> [(<where><key>=...)]"
-    (``what`` e.g. "gaps parameter", ``where`` the key's config prefix, e.g. "method.params.")."""
+    (``what`` e.g. "toy parameter", ``where`` the key's config prefix, e.g. "method.params.")."""
     if typing.get_origin(hint) is Literal:
         if value not in typing.get_args(hint):
             raise ValueError(f"{what} {key} must be one of {', '.join(map(str, typing.get_args(hint)))}, not {value!r}")
