@@ -137,6 +137,27 @@ def write_json(path: str | os.PathLike, obj: Any) -> None:
         f.write("\n")
 
 
+def check_json(obj: Any, what: str) -> None:
+    """Raise ValueError, naming ``what`` and the key path, when ``obj`` cannot be written by :func:`write_json` as
+    strict JSON (a tensor, a dataclass, a set; NaN or inf): for what a run writes only after its work."""
+
+    def walk(value, path: str) -> None:
+        if isinstance(value, dict):
+            for key, item in value.items():
+                walk(item, f"{path}.{key}" if path else str(key))
+        elif isinstance(value, (list, tuple)):
+            for i, item in enumerate(value):
+                walk(item, f"{path}[{i}]")
+        else:
+            try:
+                json.dumps(value, default=_json_default, allow_nan=False)
+            except (TypeError, ValueError) as err:
+                raise ValueError(f"{what} holds {path or 'a value'} = {value!r}, which JSON cannot hold ({err}): use plain "
+                                 "numbers, strings, lists and dicts") from None
+
+    walk(obj, "")
+
+
 def _json_default(obj: Any) -> Any:
     if isinstance(obj, np.generic):
         return obj.item()

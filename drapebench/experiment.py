@@ -26,7 +26,7 @@ import torch
 from omegaconf import DictConfig, OmegaConf
 
 from drapebench.body.dataset import dataset_hash
-from drapebench.cache import PROJECT_ROOT, Cache, atomic_write, body_key, content_hash, forcing, write_json
+from drapebench.cache import PROJECT_ROOT, Cache, atomic_write, body_key, check_json, content_hash, forcing, write_json
 from drapebench.errors import DrapeFailed
 from drapebench.garments.factory import garment_label
 from drapebench.results import METRICS, environment, git_commit, headline
@@ -323,6 +323,9 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     method_cls = method_class(cfg)  # fail fast on an unknown method
     params = method_params(cfg, command_line_train_keys())
     method = method_cls(params)  # and on a bad method.params key or value, before the scene and its reference are built
+    settings = method.settings_key()  # what the model is built and trained with, its code's defaults included
+    if settings is not None:
+        check_json(settings, f"{cfg.method.name}'s settings_key()")  # settings.json is written with the results, after the work
     stages = {}
     t = time.perf_counter()
     device = torch_device(cfg.device)  # a CUDA run on a machine without CUDA is refused here, naming the fix
@@ -389,7 +392,6 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     with atomic_write(out / "frames.csv", "w") as f:
         frames.to_csv(f, index=False)
     write_json(out / "env.json", environment(cfg.device))
-    settings = method.settings_key()  # what the model was built and trained with, its code's defaults included
     if settings is not None:
         write_json(out / "settings.json", settings)
     if viz == "rerun":

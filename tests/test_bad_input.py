@@ -403,3 +403,19 @@ def test_a_cuda_run_without_cuda_is_refused_before_the_scene_naming_the_key(meth
     monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
     with pytest.raises(ValueError, match=r"device=cuda requested but .*use device=cpu, or install a CUDA build of torch"):
         run(_compose([f"method={method}", "device=cuda", "viz=none"]), tmp_path)
+
+
+def test_a_setting_json_cannot_hold_is_refused_before_the_scene_naming_the_key(monkeypatch, tmp_path):
+    """A method's settings_key() is written to settings.json after the drape and scoring: a value JSON cannot hold
+    (a tensor, NaN) used to lose the finished run there with "not JSON serialisable: Tensor"."""
+    from drapebench import experiment
+    from methods.lbs.method import LBSMethod
+    from tests.test_experiment import _compose
+
+    monkeypatch.setattr(LBSMethod, "settings_key", lambda self: {"train": {"w": torch.zeros(2)}})
+    monkeypatch.setattr(experiment.Scene, "from_config", lambda *a, **k: pytest.fail("the scene was built"))
+    with pytest.raises(ValueError, match=r"lbs's settings_key\(\) holds train.w = tensor.*which JSON cannot hold"):
+        run(_compose(["method=lbs", "viz=none"]), tmp_path)
+    monkeypatch.setattr(LBSMethod, "settings_key", lambda self: {"grid": (1.0, float("nan"))})
+    with pytest.raises(ValueError, match=r"holds grid\[1\] = nan"):
+        run(_compose(["method=lbs", "viz=none"]), tmp_path / "nan")
