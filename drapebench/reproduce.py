@@ -297,7 +297,8 @@ def main(argv=None) -> int:
             print(f"{'done' if finished(j, at) else 'todo'}  {j.table}: {j.sweep.experiment} {' '.join(j.overrides)}")
         todo = [j for j in jobs if not finished(j, at)]
         print(f"\nthe {len(todo)} runs to do, per method, the distinct trainings they need and how many of those are in the "
-              "checkpoint cache already (the time of each training: the README's budget table):")
+              "checkpoint cache already (the time of each training: the README's budget table), then the reference sets that "
+              "the trainings of methods trained on reference drapes simulate first:")
         print("\n".join(summary(todo)))
         return 0
     failed = run_all(jobs, at, workers=args.jobs)

@@ -95,14 +95,50 @@ def _sealed(cfg, scenes: dict) -> bool:
     from omegaconf import OmegaConf
 
     from drapebench.experiment import CHECKPOINTS, checkpoint_path, method_class
+
+    scene = _scene(cfg, scenes)
+    method = method_class(cfg)(OmegaConf.to_container(cfg.method.params, resolve=True))
+    return CHECKPOINTS.sealed(checkpoint_path(method, cfg, scene.garment, scene.body))
+
+
+def _scene(cfg, scenes: dict):
+    """The run's scene (:class:`drapebench.scene.Scene`) of the composed run config ``cfg``, built once per distinct
+    body, garment, motion and dtype in ``scenes``."""
+    from omegaconf import OmegaConf
+
     from drapebench.scene import Scene
 
     key = repr([OmegaConf.to_container(cfg[k], resolve=True) for k in ("body", "garment", "motion")] + [str(cfg.dtype)])
     if key not in scenes:
         scenes[key] = Scene.from_config(cfg, device="cpu")
-    scene = scenes[key]
-    method = method_class(cfg)(OmegaConf.to_container(cfg.method.params, resolve=True))
-    return CHECKPOINTS.sealed(checkpoint_path(method, cfg, scene.garment, scene.body))
+    return scenes[key]
+
+
+def reference_sets(configs, scenes: dict) -> list:
+    """Lines: per distinct reference set (data preset, garment, body, material) that the trainings of the composed run
+    configs ``configs`` (of methods trained on reference drapes, not cached) build, how many of its sequences the
+    reference cache lacks and their frames, settling included: each is simulated before the training (1-3 s a frame on a core, the
+    pbs rows of ``reports/runtime_vs_error.md``). Simulates nothing."""
+    from omegaconf import OmegaConf
+
+    from drapebench.data.reference_set import collect_reference_set
+    from drapebench.data.reference_spec import ReferenceSetSpec
+    from drapebench.reference.settings import SimSettings
+
+    lines, seen = [], set()
+    for cfg in configs:
+        key = repr([OmegaConf.to_container(cfg[k], resolve=True) for k in ("data", "garment", "body", "material")])
+        if key in seen:
+            continue
+        seen.add(key)
+        scene = _scene(cfg, scenes)
+        spec = ReferenceSetSpec.from_config(OmegaConf.to_container(cfg.data, resolve=True))
+        found, missing = collect_reference_set(scene.garment, scene.body, scene.material, spec)
+        settle = SimSettings.for_solver(spec.solver, **spec.settings).settle_frames  # simulated before each sequence
+        frames = sum(seq.n_frames + settle for seq in missing)
+        lines.append(f"reference set data={cfg.data.name} on the {scene.garment.name}: {len(missing)} of {len(found.planned)} sequences to "
+                     f"simulate, {frames:,} frames (about {frames / 60:.0f}-{frames * 3 / 60:.0f} core-minutes, before its trainings)")  # fmt: skip
+    return lines
 
 
 def cached(configs) -> int:
@@ -114,11 +150,16 @@ def cached(configs) -> int:
 
 def summary(jobs: list) -> list:
     """Lines: per method (that has runs) its runs, the distinct trainings they need and how many of those are
-    cached already, then the totals."""
-    counts = tally(jobs)
-    have = {name: cached(row["trainings"].values()) for name, row in counts.items()}
+    cached already, then the totals, then the reference sets the uncached trainings of methods trained on reference
+    drapes build first (:func:`reference_sets`)."""
+    from drapebench.experiment import method_class
+
+    counts, scenes = tally(jobs), {}
+    sealed = {name: [_sealed(cfg, scenes) for cfg in row["trainings"].values()] for name, row in counts.items()}
     lines = [f"{'method':<24}{'runs':>6}{'trainings':>11}{'cached':>8}"]
-    lines += [f"{name:<24}{row['runs']:>6}{len(row['trainings']):>11}{have[name]:>8}" for name, row in counts.items()]
+    lines += [f"{name:<24}{row['runs']:>6}{len(row['trainings']):>11}{sum(sealed[name]):>8}" for name, row in counts.items()]
     lines.append(f"{'all':<24}{sum(r['runs'] for r in counts.values()):>6}{sum(len(r['trainings']) for r in counts.values()):>11}"
-                 f"{sum(have.values()):>8}")
-    return lines
+                 f"{sum(map(sum, sealed.values())):>8}")
+    to_build = [cfg for name, row in counts.items() for cfg, done in zip(row["trainings"].values(), sealed[name])
+                if not done and method_class(cfg).needs_reference]  # fmt: skip
+    return lines + reference_sets(to_build, scenes)

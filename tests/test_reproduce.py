@@ -161,6 +161,29 @@ def test_the_cost_tally_counts_a_training_per_model_not_per_run():
     assert lines[-1].split() == ["all", "18", "6", "0"]  # the test's empty cache holds none of them
 
 
+def test_the_cost_counts_the_reference_sets_that_uncached_trainings_build_first(monkeypatch):
+    """The VAE trains on the reference drapes of its data preset: a dry run on a machine without them said "2
+    trainings" and left out the simulations before them (about 40 minutes a garment). Its runs on one garment share
+    one set; a set whose trainings are all cached is not built."""
+    from omegaconf import OmegaConf
+
+    import drapebench.reproduce_cost as cost
+    from drapebench.body.dataset import spec_sequences
+    from drapebench.cache import PROJECT_ROOT
+    from drapebench.data.reference_spec import ReferenceSetSpec
+    from drapebench.reference.settings import SimSettings
+
+    jobs = _jobs(Sweep("vae_table1", ("method=vae,vae_mean_code", "seed=0,1", "motion=kick", "motion.betas=[1.0,-1.0]", "garment=tshirt")))
+    data = ReferenceSetSpec.from_config(OmegaConf.to_container(OmegaConf.load(PROJECT_ROOT / "conf" / "data" / "cpu.yaml")))
+    planned = spec_sequences(data.dataset_spec())
+    settle = SimSettings.for_solver(data.solver, **data.settings).settle_frames
+    line = summary(jobs)[-1]  # the test's empty reference cache
+    assert line.startswith(f"reference set data=cpu on the tshirt: {len(planned)} of {len(planned)} sequences to simulate, "
+                           f"{sum(s.n_frames + settle for s in planned):,} frames")  # fmt: skip
+    monkeypatch.setattr(cost, "_sealed", lambda cfg, scenes: True)
+    assert summary(jobs)[-1].split()[0] == "all"
+
+
 def test_the_cost_counts_a_cached_checkpoint_where_the_run_would_load_it():
     """A checkpoint stored at the path the run computes (drapebench.experiment.checkpoint_path) is counted as cached for
     its training alone; one stored under another seed's key is not."""
