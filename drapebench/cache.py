@@ -138,8 +138,8 @@ def write_json(path: str | os.PathLike, obj: Any) -> None:
 
 
 def check_json(obj: Any, what: str) -> None:
-    """Raise ValueError, naming ``what`` and the key path, when ``obj`` cannot be written by :func:`write_json` as
-    strict JSON (a tensor, a dataclass, a set; NaN or inf): for what a run writes only after its work."""
+    """Raise ValueError, naming ``what`` and the key path, when :func:`write_json` cannot write ``obj`` (a tensor, a
+    dataclass, a set): for what a run writes only after its work."""
 
     def walk(value, path: str) -> None:
         if isinstance(value, dict):
@@ -150,7 +150,7 @@ def check_json(obj: Any, what: str) -> None:
                 walk(item, f"{path}[{i}]")
         else:
             try:
-                json.dumps(value, default=_json_default, allow_nan=False)
+                json.dumps(value, default=_json_default)
             except (TypeError, ValueError) as err:
                 raise ValueError(f"{what} holds {path or 'a value'} = {value!r}, which JSON cannot hold ({err}): use plain "
                                  "numbers, strings, lists and dicts") from None

@@ -8,7 +8,8 @@ import difflib
 import math
 import types
 import typing
-from typing import Iterable, Literal, Mapping
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Literal
 
 
 def check_known(given: Iterable, valid: Iterable, what: str, where: str = "") -> None:
@@ -25,13 +26,10 @@ def check_known(given: Iterable, valid: Iterable, what: str, where: str = "") ->
 
 def check_type(value, hint, what: str, key: str, where: str = "") -> None:
     """Raise ValueError unless ``value`` fits the type ``hint`` of ``key`` (e.g. "train.lr"): a ``Literal``'s
-    choices, bool, int (not a bool), float (an int too; not NaN), str, ``X | None``, ``tuple[X, ...]`` (a list
-    too), dict (any mapping). Worded "<what> <key> must be <type in words>, not <value> [(<where><key>=...)]"
-    (``what`` e.g. "toy parameter", ``where`` the key's config prefix, e.g. "method.params.")."""
-    if typing.get_origin(hint) is Literal:
-        if value not in typing.get_args(hint):
-            raise ValueError(f"{what} {key} must be one of {', '.join(map(str, typing.get_args(hint)))}, not {value!r}")
-        return
+    choices, bool, int (not a bool), float (an int too; not NaN, inf allowed), str, ``X | None``, ``tuple[X, ...]``,
+    ``list[X]`` and ``Sequence[X]`` (a list or tuple), dict and ``Mapping[K, V]`` (any mapping), ``Any``. Worded
+    "<what> <key> must be <type in words>, not <value> [(<where><key>=...)]" (``what`` e.g. "toy parameter",
+    ``where`` the key's config prefix, e.g. "method.params.")."""
     if not _fits(value, hint):
         raise ValueError(f"{what} {key} must be {_describe(hint)}, not {value!r}{f' ({where}{key}=...)' if where else ''}")
 
@@ -39,6 +37,8 @@ def check_type(value, hint, what: str, key: str, where: str = "") -> None:
 def _fits(value, hint) -> bool:
     """Whether ``value`` fits the type ``hint`` (:func:`check_type`'s rules)."""
     origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if hint is typing.Any:
+        return True
     if origin in (typing.Union, types.UnionType):
         return any(_fits(value, h) for h in args)
     if origin is Literal:
@@ -50,25 +50,26 @@ def _fits(value, hint) -> bool:
     if hint is int:
         return isinstance(value, int) and not isinstance(value, bool)
     if hint is float:
-        return _is_number(value) and not math.isnan(value)
-    if hint is tuple or origin is tuple:
+        return is_number(value) and not math.isnan(value)
+    if hint in (tuple, list) or origin in (tuple, list, Sequence):
         if not isinstance(value, (list, tuple)):
             return False
-        if len(args) == 2 and args[1] is Ellipsis:
-            return all(_fits(v, args[0]) for v in value)
-        return not args or len(value) == len(args) and all(map(_fits, value, args))
-    if hint is dict or origin is dict:
-        return isinstance(value, Mapping)
+        if origin is tuple and not (len(args) == 2 and args[1] is Ellipsis):
+            return not args or len(value) == len(args) and all(map(_fits, value, args))
+        return not args or all(_fits(v, args[0]) for v in value)
+    if hint is dict or origin in (dict, Mapping):
+        typed = len(args) == 2
+        return isinstance(value, Mapping) and (not typed or all(_fits(k, args[0]) and _fits(v, args[1]) for k, v in value.items()))
     return isinstance(value, hint) if isinstance(hint, type) else True
 
 
 def hint_of(default):
     """The type an entry whose default is ``default`` takes (for :func:`check_type`): float for a number, the
     default's own type for a bool or str, None (anything) otherwise."""
-    return float if _is_number(default) else type(default) if isinstance(default, (bool, str)) else None
+    return float if is_number(default) else type(default) if isinstance(default, (bool, str)) else None
 
 
-def _is_number(value) -> bool:
+def is_number(value) -> bool:
     """Whether ``value`` is an int or a float (not a bool)."""
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
@@ -78,11 +79,14 @@ def _describe(hint) -> str:
     origin, args = typing.get_origin(hint), typing.get_args(hint)
     if origin in (typing.Union, types.UnionType):
         return " or ".join(_describe(h) for h in args)
+    if origin is Literal:
+        return f"one of {', '.join(map(str, args))}"
     if hint is type(None):
         return "None"
-    if hint is tuple or origin is tuple:
-        return f"a list of {_describe(args[0]).split(' ', 1)[1]} values" if len(args) == 2 and args[1] is Ellipsis else "a list"
-    if hint is dict or origin is dict:
+    if hint in (tuple, list) or origin in (tuple, list, Sequence):
+        of_one = args and (origin is not tuple or len(args) == 2 and args[1] is Ellipsis)
+        return f"a list of {_describe(args[0]).split(' ', 1)[1]} values" if of_one else "a list"
+    if hint is dict or origin in (dict, Mapping):
         return "a mapping of keys"
     name = getattr(hint, "__name__", str(hint))
     return f"{'an' if name[0] in 'aeiou' else 'a'} {name}"

@@ -117,8 +117,8 @@ def _scene(cfg, scenes: dict):
 def reference_sets(configs, scenes: dict) -> list:
     """Lines: per distinct reference set (data preset, garment, body, material) that the trainings of the composed run
     configs ``configs`` (of methods trained on reference drapes, not cached) build, how many of its sequences the
-    reference cache lacks and their frames, settling included: each is simulated before the training (1-3 s a frame on a core, the
-    pbs rows of ``reports/runtime_vs_error.md``). Simulates nothing."""
+    reference cache lacks and their frames, settling included: each is simulated before the training (1-3 s a
+    frame on a core: the physics reference run as a method in ``reports/runtime_vs_error.md``). Simulates nothing."""
     from omegaconf import OmegaConf
 
     from drapebench.data.reference_set import collect_reference_set
@@ -141,11 +141,11 @@ def reference_sets(configs, scenes: dict) -> list:
     return lines
 
 
-def cached(configs) -> int:
-    """How many of the trainings that the composed run configs ``configs`` need have a sealed checkpoint in the cache
-    (:func:`_sealed`)."""
-    scenes = {}
-    return sum(_sealed(cfg, scenes) for cfg in configs)
+def cached(configs, scenes: dict | None = None) -> list:
+    """Per composed run config of ``configs``, whether the training it needs has a sealed checkpoint in the cache
+    (:func:`_sealed`); ``scenes`` as there."""
+    scenes = {} if scenes is None else scenes
+    return [_sealed(cfg, scenes) for cfg in configs]
 
 
 def summary(jobs: list) -> list:
@@ -155,7 +155,7 @@ def summary(jobs: list) -> list:
     from drapebench.experiment import method_class
 
     counts, scenes = tally(jobs), {}
-    sealed = {name: [_sealed(cfg, scenes) for cfg in row["trainings"].values()] for name, row in counts.items()}
+    sealed = {name: cached(row["trainings"].values(), scenes) for name, row in counts.items()}
     lines = [f"{'method':<24}{'runs':>6}{'trainings':>11}{'cached':>8}"]
     lines += [f"{name:<24}{row['runs']:>6}{len(row['trainings']):>11}{sum(sealed[name]):>8}" for name, row in counts.items()]
     lines.append(f"{'all':<24}{sum(r['runs'] for r in counts.values()):>6}{sum(len(r['trainings']) for r in counts.values()):>11}"

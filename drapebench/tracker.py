@@ -33,6 +33,7 @@ from pathlib import Path
 from omegaconf import DictConfig, OmegaConf
 
 from drapebench.cache import data_dir
+from drapebench.keys import is_number
 from drapebench.schema import choice
 
 log = logging.getLogger("drapebench")
@@ -105,7 +106,7 @@ def _metrics(out: Path, record: dict, now: int):
     from mlflow.entities import Metric
 
     metrics = [Metric(metric_name(k), float(v), now, 0) for k, v in record.items()
-               if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and k not in TAG_KEYS]  # fmt: skip
+               if is_number(v) and math.isfinite(v) and k not in TAG_KEYS]  # fmt: skip
     for name, prefix in HISTORIES.items():
         if not (out / name).exists():
             continue

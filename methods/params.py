@@ -23,7 +23,8 @@ TRAIN_KEYS = tuple(f.name for f in dataclasses.fields(TrainConf))  # what a meth
 def typed_params(cls: type, cfg: Mapping[str, Any] | None, method: str, section: str = ""):
     """An instance of the frozen dataclass ``cls`` with ``cfg`` (``method.params``, or one ``section`` of it, e.g.
     "train") over its defaults, nested dataclass fields built the same way. Raises ValueError naming an unknown key
-    (and the valid ones) or a value outside a ``Literal``'s choices, worded "<method> [<section>] parameter ..."."""
+    (and the valid ones), a value of another type than its field (:func:`drapebench.keys.check_type`; a section
+    given as a scalar or null) or outside a ``Literal``'s choices, worded "<method> [<section>] parameter ..."."""
     if cfg is not None and not isinstance(cfg, Mapping) or cfg is None and section:
         raise ValueError(f"{method} parameter {section or 'params'} is a section of keys ({', '.join(f.name for f in dataclasses.fields(cls))}), "
                          f"not {cfg!r}: set its keys one by one (method.params.{section + '.' if section else ''}<key>=...)")

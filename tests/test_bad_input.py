@@ -407,7 +407,7 @@ def test_a_cuda_run_without_cuda_is_refused_before_the_scene_naming_the_key(meth
 
 def test_a_setting_json_cannot_hold_is_refused_before_the_scene_naming_the_key(monkeypatch, tmp_path):
     """A method's settings_key() is written to settings.json after the drape and scoring: a value JSON cannot hold
-    (a tensor, NaN) used to lose the finished run there with "not JSON serialisable: Tensor"."""
+    (a tensor, a set) used to lose the finished run there with "not JSON serialisable: Tensor"."""
     from drapebench import experiment
     from methods.lbs.method import LBSMethod
     from tests.test_experiment import _compose
@@ -416,6 +416,6 @@ def test_a_setting_json_cannot_hold_is_refused_before_the_scene_naming_the_key(m
     monkeypatch.setattr(experiment.Scene, "from_config", lambda *a, **k: pytest.fail("the scene was built"))
     with pytest.raises(ValueError, match=r"lbs's settings_key\(\) holds train.w = tensor.*which JSON cannot hold"):
         run(_compose(["method=lbs", "viz=none"]), tmp_path)
-    monkeypatch.setattr(LBSMethod, "settings_key", lambda self: {"grid": (1.0, float("nan"))})
-    with pytest.raises(ValueError, match=r"holds grid\[1\] = nan"):
+    monkeypatch.setattr(LBSMethod, "settings_key", lambda self: {"grid": [1.0, {2.0}]})
+    with pytest.raises(ValueError, match=r"holds grid\[1\] = \{2.0\}"):
         run(_compose(["method=lbs", "viz=none"]), tmp_path / "nan")

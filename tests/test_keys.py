@@ -71,8 +71,11 @@ def test_composing_a_config_imports_no_torch():
     ([1, "x"], tuple[int, ...], "must be a list of int values"),
     (None, float, "must be a float, not None"),
     ("big", float | None, "must be a float or None, not 'big'"),
-    ("c", typing.Literal["a", "b"], r"^toy setting n must be one of a, b, not 'c'$"),
+    ("c", typing.Literal["a", "b"], r"^toy setting n must be one of a, b, not 'c' \(method.params.n=...\)$"),
     (3, dict, "must be a mapping of keys, not 3"),
+    (5, list[int], "must be a list of int values, not 5"),
+    (["x"], typing.Sequence[int], "must be a list of int values"),
+    ({"a": "x"}, typing.Mapping[str, int], "must be a mapping of keys"),
 ])
 def test_a_value_of_another_type_is_named_with_its_key_and_what_it_takes(value, hint, message):
     with pytest.raises(ValueError, match=message):
@@ -80,7 +83,8 @@ def test_a_value_of_another_type_is_named_with_its_key_and_what_it_takes(value, 
 
 
 @pytest.mark.parametrize("value, hint", [(3, float), (2, int), (None, float | None), ([1, 2], tuple[int, ...]), ((1.0,), tuple[float, ...]),
-                                         ("a", typing.Literal["a", "b"]), ({"k": 1}, dict), (False, bool), (float("inf"), float)])
+                                         ("a", typing.Literal["a", "b"]), ({"k": 1}, dict), (False, bool), (float("inf"), float),
+                                         (object(), typing.Any), ([1, 2], list[int]), ((1,), typing.Sequence[int]), ({"a": 1}, typing.Mapping[str, int])])
 def test_a_value_of_its_type_passes(value, hint):
     check_type(value, hint, "toy setting", "n")
 
@@ -95,3 +99,5 @@ def test_a_reference_or_pbs_setting_of_another_type_is_named_before_a_simulation
     with pytest.raises(ValueError, match="reference setting retry_substeps must be a list of int values, not 5"):
         SimSettings.for_solver("vbd", retry_substeps=5)
     assert SimSettings.for_solver("style3d", retry_substeps=[8]).retry_substeps == (8,)  # a list stands for a tuple
+    with pytest.raises(ValueError, match="unknown reference solver None; available: vbd, style3d"):  # the choices, not "must be a str"
+        SimSettings(solver=None)

@@ -28,7 +28,7 @@ from drapebench.garments.garment import Garment, load_garment
 from drapebench.garments.mesh_ops import cut_by_field, isotropic_remesh, keep_component_near
 from drapebench.garments.validate import validate_garment
 from drapebench.geometry.topology import get_topology
-from drapebench.keys import check_known
+from drapebench.keys import check_known, is_number
 
 TOPS = ("tshirt", "tank", "longsleeve")
 LOOSE = ("skirt", "dress", "gown")
@@ -260,7 +260,7 @@ def _garment_betas(betas, sequence_betas):
         return None
     if betas == "motion":
         return None if sequence_betas is None else [float(b) for b in sequence_betas]
-    if isinstance(betas, (list, tuple)) and all(isinstance(b, (int, float)) and not isinstance(b, bool) for b in betas):
+    if isinstance(betas, (list, tuple)) and all(map(is_number, betas)):
         return [float(b) for b in betas]
     raise ValueError(f"garment.betas must be null (the mean body), motion (the sequence's body shape) or a list of numbers, "
                      f"not {betas!r}; e.g. garment.betas=motion or garment.betas=[0.0,2.0]")

@@ -40,17 +40,17 @@ class SimSettings:
     retry_substeps: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
-        hints = typing.get_type_hints(type(self))
-        for f in fields(self):
-            check_type(getattr(self, f.name), hints[f.name], "reference setting", f.name)
-        object.__setattr__(self, "retry_substeps", tuple(int(n) for n in self.retry_substeps or ()))
-        if any(n < 1 for n in self.retry_substeps):
-            raise ValueError(f"reference retry_substeps must all be >= 1, got {list(self.retry_substeps)}")
         if self.solver not in SOLVERS:
             raise ValueError(
                 f"unknown reference solver {self.solver!r}; available: {', '.join(SOLVERS)} "
                 "(XPBD and semi-implicit are not offered: they explode at realistic cloth mass)"
             )
+        hints = typing.get_type_hints(type(self))
+        for f in fields(self):
+            check_type(getattr(self, f.name), hints[f.name], "reference setting", f.name)
+        object.__setattr__(self, "retry_substeps", tuple(int(n) for n in self.retry_substeps))
+        if any(n < 1 for n in self.retry_substeps):
+            raise ValueError(f"reference retry_substeps must all be >= 1, got {list(self.retry_substeps)}")
         for key in ("substeps", "iterations"):
             if int(getattr(self, key)) < 1:
                 raise ValueError(f"reference {key} must be >= 1, got {getattr(self, key)}")

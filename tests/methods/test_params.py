@@ -38,9 +38,9 @@ def test_unknown_keys_and_choices_are_named_with_their_path_and_the_valid_ones()
         typed_params(Outer, {"inner": {"sise": 1.0}}, "toy")
     with pytest.raises(ValueError, match=r"unknown toy inner.schedule parameter\(s\) \['epoch'\] \(method.params.inner.schedule\) \(did you mean 'epochs'\?\); valid: \['batch_size'"):
         typed_params(Outer, {"inner": {"schedule": {"epoch": 1}}}, "toy")  # a schedule holds the budget's (conf/train) keys
-    with pytest.raises(ValueError, match=r"^toy parameter kind must be one of x, y, not 'z'$"):
+    with pytest.raises(ValueError, match=r"^toy parameter kind must be one of x, y, not 'z' \(method.params.kind=...\)$"):
         typed_params(Outer, {"kind": "z"}, "toy")
-    with pytest.raises(ValueError, match=r"^toy parameter inner.mode must be one of a, b, not 'c'$"):
+    with pytest.raises(ValueError, match=r"^toy parameter inner.mode must be one of a, b, not 'c' \(method.params.inner.mode=...\)$"):
         typed_params(Outer, {"inner": {"mode": "c"}}, "toy")
 
 
