@@ -177,7 +177,9 @@ def test_the_cost_counts_the_reference_sets_that_uncached_trainings_build_first(
     data = ReferenceSetSpec.from_config(OmegaConf.to_container(OmegaConf.load(PROJECT_ROOT / "conf" / "data" / "cpu.yaml")))
     planned = spec_sequences(data.dataset_spec())
     settle = SimSettings.for_solver(data.solver, **data.settings).settle_frames
-    line = summary(jobs)[-1]  # the test's empty reference cache
+    lines = summary(jobs)
+    assert sum(x.startswith("reference set") for x in lines) == 1  # four trainings (two methods, two seeds), one set
+    line = lines[-1]  # the test's empty reference cache
     assert line.startswith(f"reference set data=cpu on the tshirt: {len(planned)} of {len(planned)} sequences to simulate, "
                            f"{sum(s.n_frames + settle for s in planned):,} frames")  # fmt: skip
     monkeypatch.setattr(cost, "_sealed", lambda cfg, scenes: True)
