@@ -19,6 +19,7 @@ import shutil
 import time
 from functools import partial
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -157,15 +158,27 @@ def checkpoint_path(method, cfg: DictConfig, garment, body, train_cfg: dict | No
                             body_key(method.trained_body(body)), OmegaConf.to_container(cfg.material, resolve=True), prefix=cfg.method.name, suffix=".pt")  # fmt: skip
 
 
-def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir: Path | None = None):
+class Trained(NamedTuple):
+    """Where a run's model came from (:func:`_checkpoint`). ``train_s``: its training time (s); ``checkpoint``: its
+    path; ``stopped``: how its training ended ("done"; "clock": its lr decayed by ``train.max_minutes``' clock;
+    "time": cut by it); ``trained_at``: the commit whose code trained it ("unrecorded" for a checkpoint stored before
+    it was recorded); ``steps``: its optimisation steps (None: unrecorded); ``body``: the name of the body model it
+    trained on (``method.trained_body``). A method with nothing learned: its fit's time, the rest None."""
+
+    train_s: float
+    checkpoint: str | None = None
+    stopped: str | None = None
+    trained_at: str | None = None
+    steps: int | None = None
+    body: str | None = None
+
+
+def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir: Path | None = None) -> Trained:
     """Train, or load a checkpoint whose hash (method config + the method's settings_key + training config + training data content + garment
     (not for a generic method) + the body it trains on (``method.trained_body``) + material) matches. ``log_dir`` (passed to ``fit`` as the train config's ``log_dir``
     entry, for live logs) gets the fit's ``losses.csv`` (per step) and, when the method evaluates per epoch,
-    ``evaluations.csv``, the same from a fresh fit or a loaded checkpoint. Returns the training time (s), the
-    checkpoint's path, how its training stopped ("done"; "clock": its lr decayed by ``train.max_minutes``' clock;
-    "time": cut by it; the last two warned again on every load) and the commit whose code trained it (the key holds
-    the configuration, not the code; "unrecorded" for a checkpoint stored before it was recorded); a method with
-    nothing learned: its fit's time, None, None, None."""
+    ``evaluations.csv``, the same from a fresh fit or a loaded checkpoint. A "clock" or "time" training is warned
+    again on every load (the key holds the configuration, not the code or the machine's speed)."""
     path = checkpoint_path(method, cfg, garment, data.body, train_cfg)
     state = CHECKPOINTS.load(path, partial(torch.load, map_location="cpu", weights_only=False), force=bool(cfg.force))
     if state is not None:
@@ -180,16 +193,16 @@ def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir
         elif stopped == "clock":
             log.warning("checkpoint %s ran every step, but its learning rate decayed by train.max_minutes' clock ahead of the "
                         "steps: its model depends on the speed of the machine that trained it; force=true retrains it", path.name)  # fmt: skip
-        return state["train_s"], str(path), stopped, state.get("commit", "unrecorded")
+        return Trained(state["train_s"], str(path), stopped, state.get("commit", "unrecorded"), state.get("n_steps"), method.trained_body(data.body).name)
     report = method.fit(data, train_cfg if log_dir is None else {**train_cfg, "log_dir": str(log_dir)})
     _write_fit_logs(log_dir, report.history, report.evaluations)
     state = method.state_dict()
     if not state:
-        return report.train_s, None, None, None
+        return Trained(report.train_s)
     CHECKPOINTS.store(path, lambda tmp: torch.save({"method": state, "train_s": report.train_s, "history": report.history,
                                                     "evaluations": report.evaluations, "stopped": report.stopped,
                                                     "n_steps": report.n_steps, "commit": git_commit()}, tmp))  # fmt: skip
-    return report.train_s, str(path), report.stopped, git_commit()
+    return Trained(report.train_s, str(path), report.stopped, git_commit(), report.n_steps, method.trained_body(data.body).name)
 
 
 def _write_fit_logs(log_dir: Path | None, history: list[dict], evaluations: list[dict]) -> None:
@@ -353,9 +366,9 @@ def _run(cfg: DictConfig, out: Path) -> dict:
 
     data = scene.train_data(method, run_body)
     t = time.perf_counter()
-    train_s, ckpt, train_stopped, trained_at = _checkpoint(method, cfg, garment, data, train_cfg, log_dir=out)
+    trained = _checkpoint(method, cfg, garment, data, train_cfg, log_dir=out)
     stages["fit_s"] = time.perf_counter() - t
-    if ckpt is not None:
+    if trained.checkpoint is not None:
         warn_untrained_shape(seq.betas, train_cfg, method.trained_beta_bound(), cfg.method.name)
 
     from drapebench.drape_stream import stream_drape
@@ -375,11 +388,12 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     record = {
         "method": cfg.method.name, "garment": garment_name, "motion": cfg.motion.name, "body": cfg.body.name,
         "shape": shape_label(seq.betas), "dtype": str(dtype).removeprefix("torch."), "reference": cfg.reference.solver or "none", "n_vertices": garment.n_vertices, "n_frames": seq.n_frames, **summary,
-        "ms_per_frame": drape_ms_per_frame(result.timings_ms, drape_s, seq.n_frames), "train_s": train_s,
+        "ms_per_frame": drape_ms_per_frame(result.timings_ms, drape_s, seq.n_frames), "train_s": trained.train_s,
         "setup_s": result.timings_ms.get("setup", 0.0) / 1e3,
         **{f"ms_{k}": v / seq.n_frames for k, v in result.timings_ms.items() if k != "setup"},
-        "seed": int(cfg.seed), "train_seed": int(cfg.train.seed), "device": str(cfg.device), "experiment": cfg.experiment_name, "checkpoint": ckpt, "commit": git_commit(),
-        **({"train_stopped": train_stopped} if train_stopped else {}), **({"trained_at": trained_at} if trained_at else {}), **({"reference_error": reference_error} if reference_error else {}),
+        "seed": int(cfg.seed), "train_seed": int(cfg.train.seed), "device": str(cfg.device), "experiment": cfg.experiment_name, "checkpoint": trained.checkpoint, "commit": git_commit(),
+        **{key: value for key, value in (("train_stopped", trained.stopped), ("trained_at", trained.trained_at), ("train_steps", trained.steps),
+                                          ("train_body", trained.body)) if value is not None}, **({"reference_error": reference_error} if reference_error else {}),
     }  # fmt: skip
     if export != "none":
         from drapebench.export import Drape, export_drape

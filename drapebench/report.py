@@ -324,6 +324,32 @@ def trained_note(df: pd.DataFrame) -> str:
             + "; ".join(f"{m} {c}" for m, c in per.items()) + ".")
 
 
+def training_note(df: pd.DataFrame) -> str:
+    """A note naming, per trained method, what its models trained on and for how long: the body model (its
+    ``trained_body``, which may differ from the scene's), the optimisation steps and the training minutes, each
+    model (checkpoint) counted once, a range where its models differ; "" when no run loaded a trained model."""
+    if "checkpoint" not in df:
+        return ""
+    models = df[df["checkpoint"].notna()].drop_duplicates("checkpoint")
+    if models.empty:
+        return ""
+
+    def spread(values, fmt) -> str:
+        known = sorted({float(v) for v in values if pd.notna(v)})
+        if not known:
+            return "unrecorded"
+        return fmt(known[0]) if known[0] == known[-1] else f"{fmt(known[0])}-{fmt(known[-1])}"
+
+    parts = []
+    for method, runs in models.groupby("method", sort=False):
+        bodies = ", ".join(dict.fromkeys(map(str, runs["train_body"].dropna()))) if "train_body" in runs else ""
+        steps = spread(runs.get("train_steps", pd.Series(dtype=float)), lambda v: f"{v:,.0f}")
+        minutes = spread(runs["train_s"] / 60.0 if "train_s" in runs else pd.Series(dtype=float), lambda v: f"{v:.1f}")
+        parts.append(f"{method} on {bodies or 'an unrecorded body'}, {steps} steps, {minutes} min ({len(runs)} model{'s' if len(runs) > 1 else ''})")
+    return ("**Training**: per method, the body model its models trained on, their optimisation steps and training "
+            "minutes (from each run's metrics.json; a cached model counts once): " + "; ".join(parts) + ".")
+
+
 def run_table(df: pd.DataFrame, failed: pd.DataFrame, metrics: list[str], decimals: int | None = None) -> pd.DataFrame:
     """One row per run (its scene in ``CASE_COLUMNS``, then ``metrics``), the failed runs' metric cells
     "failed"; rows in the order of the runs; ``decimals`` as :func:`table`'s."""
@@ -723,7 +749,7 @@ def write_table(dirs, name: str, out: Path, command: str | None = None, methods:
     if ts.pareto and speedups(df):
         notes += "\n\n" + speedups(df)
     notes += "\n\n" + seeds_note(df, group)
-    warnings = [n for n in (time_cut_note(df), commits_note(df), trained_note(df)) if n]  # written to every format below
+    warnings = [n for n in (training_note(df), time_cut_note(df), commits_note(df), trained_note(df)) if n]  # written to every format below
     for note in warnings:
         notes += "\n\n" + note
     out = gpu_out(Path(out), df)

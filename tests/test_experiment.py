@@ -185,7 +185,8 @@ def test_training_writes_losses_and_evaluations_csv_into_the_run_directory_and_a
     train_cfg = {**OmegaConf.to_container(cfg.train, resolve=True), "dataset": None}
     for run_dir in (tmp_path / "a", tmp_path / "b"):  # a rerun in a new run directory loads the checkpoint
         run_dir.mkdir()
-        assert _checkpoint(Learned(), cfg, garment, data, train_cfg, log_dir=run_dir)[3] == git_commit()  # the code that trained it
+        trained = _checkpoint(Learned(), cfg, garment, data, train_cfg, log_dir=run_dir)
+        assert trained.trained_at == git_commit() and trained.steps == 1 and trained.body == "anny_lowres"  # the code, steps and body that trained it
         assert (run_dir / "losses.csv").read_text().splitlines() == ["step,loss", "1,0.5"]
         assert (run_dir / "evaluations.csv").read_text().splitlines() == ["epoch,step,colliding", "0,1,2.0"]
     assert len(Learned.fits) == 1 and Learned.fits[0]["log_dir"] == str(tmp_path / "a")
@@ -675,18 +676,18 @@ def test_a_training_cut_by_max_minutes_is_recorded_and_warned_on_every_load(tmp_
     garment = type("G", (), {"vertices": torch.zeros(3, 3), "faces": torch.zeros(1, 3, dtype=torch.long)})()
     data = type("D", (), {"body": body_lowres, "material": None})()
     train_cfg = {**OmegaConf.to_container(cfg.train, resolve=True), "dataset": None}
-    assert _checkpoint(Cut(), cfg, garment, data, train_cfg)[2] == "time"
+    assert _checkpoint(Cut(), cfg, garment, data, train_cfg).stopped == "time"
     with caplog.at_level("WARNING", logger="drapebench"):
-        assert _checkpoint(Cut(), cfg, garment, data, train_cfg)[2] == "time"  # loaded, not retrained
+        assert _checkpoint(Cut(), cfg, garment, data, train_cfg).stopped == "time"  # loaded, not retrained
     assert "cut by train.max_minutes" in caplog.text and "3 steps done" in caplog.text
     Cut.stopped = "clock"  # every step, its lr decayed by the clock: recorded and warned on a load too
-    assert _checkpoint(Cut(), cfg, garment, data, {**train_cfg, "seed": 98})[2] == "clock"
+    assert _checkpoint(Cut(), cfg, garment, data, {**train_cfg, "seed": 98}).stopped == "clock"
     caplog.clear()
     with caplog.at_level("WARNING", logger="drapebench"):
-        assert _checkpoint(Cut(), cfg, garment, data, {**train_cfg, "seed": 98})[2] == "clock"
+        assert _checkpoint(Cut(), cfg, garment, data, {**train_cfg, "seed": 98}).stopped == "clock"
     assert "decayed by train.max_minutes' clock" in caplog.text
     Cut.stopped = "done"
-    assert _checkpoint(Cut(), cfg, garment, data, {**train_cfg, "seed": 99})[2] == "done"
+    assert _checkpoint(Cut(), cfg, garment, data, {**train_cfg, "seed": 99}).stopped == "done"
 
 
 class _ConstantState(DrapingMethod):

@@ -4,7 +4,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from drapebench.report import collect, provenance, table, write_summary, write_table
+from drapebench.report import collect, provenance, table, training_note, write_summary, write_table
 
 FIXTURES = Path(__file__).parent / "fixtures" / "runs"
 
@@ -480,6 +480,23 @@ def test_a_table_names_models_trained_by_another_commits_code(tmp_path):
     assert read_table(odd[2]).trained_at == {"gaps": ["bbbbbbb-dirty", "unknown"]}  # neither is a known commit: stale
     _seeded_runs(tmp_path / "same", [1.0, 2.0, 4.0], commits=(a,) * 3, trained_at=(a, a, a))
     assert "Models trained at" not in write_table([tmp_path / "same"], "baseline", tmp_path / "out2" / "t", command="pytest")[0].read_text()
+
+
+def test_a_table_names_each_trained_methods_body_steps_and_minutes(tmp_path):
+    import json
+    import shutil
+
+    df = _seeded_runs(tmp_path, [1.0, 2.0, 4.0])
+    assert training_note(df) == ""  # no run loaded a trained model
+    for seed, (steps, train_s) in enumerate([(3300, 600.0), (3300, 720.0), (2900, 660.0)]):
+        path = tmp_path / f"{seed}_gaps_tshirt" / "metrics.json"
+        rec = {**json.loads(path.read_text()), "checkpoint": f"gaps_{seed}.pt", "train_steps": steps, "train_s": train_s, "train_body": "anny_lowres"}
+        path.write_text(json.dumps(rec))
+    shutil.copytree(tmp_path / "0_gaps_tshirt", tmp_path / "5_gaps_tshirt")  # a second run of seed 0's model counts once
+    note = training_note(collect([tmp_path]))
+    assert "gaps on anny_lowres, 2,900-3,300 steps, 10.0-12.0 min (3 models)." in note and "pbs" not in note
+    text = write_table([tmp_path], "baseline", tmp_path / "out" / "t", command="pytest")
+    assert all("**Training**" in p.read_text() for p in text[:3])  # .md, .tex and .csv
 
 
 def test_a_per_run_table_keeps_seeds_apart(tmp_path):
