@@ -327,27 +327,29 @@ def trained_note(df: pd.DataFrame) -> str:
 def training_note(df: pd.DataFrame) -> str:
     """A note naming, per trained method, what its models trained on and for how long: the body model (its
     ``trained_body``, which may differ from the scene's), the optimisation steps and the training minutes, each
-    model (checkpoint) counted once, a range where its models differ; "" when no run loaded a trained model."""
+    model (checkpoint) counted once, a range where its models differ (what runs made before a key was recorded
+    lack is left out); "" when no run loaded a trained model."""
     if "checkpoint" not in df:
         return ""
     models = df[df["checkpoint"].notna()].drop_duplicates("checkpoint")
     if models.empty:
         return ""
 
-    def spread(values, fmt) -> str:
-        known = sorted({float(v) for v in values if pd.notna(v)})
-        if not known:
-            return "unrecorded"
-        return fmt(known[0]) if known[0] == known[-1] else f"{fmt(known[0])}-{fmt(known[-1])}"
+    def spread(values: pd.Series, fmt) -> str | None:  # "a" or "a-b" over the known values, as printed
+        known = sorted({fmt(float(v)) for v in values if pd.notna(v)}, key=lambda text: float(text.replace(",", "")))
+        return None if not known else known[0] if len(known) == 1 else f"{known[0]}-{known[-1]}"
 
-    parts = []
+    parts, unrecorded = [], False
     for method, runs in models.groupby("method", sort=False):
         bodies = ", ".join(dict.fromkeys(map(str, runs["train_body"].dropna()))) if "train_body" in runs else ""
         steps = spread(runs.get("train_steps", pd.Series(dtype=float)), lambda v: f"{v:,.0f}")
-        minutes = spread(runs["train_s"] / 60.0 if "train_s" in runs else pd.Series(dtype=float), lambda v: f"{v:.1f}")
-        parts.append(f"{method} on {bodies or 'an unrecorded body'}, {steps} steps, {minutes} min ({len(runs)} model{'s' if len(runs) > 1 else ''})")
+        minutes = spread(runs.get("train_s", pd.Series(dtype=float)), lambda v: f"{v / 60:.1f}")
+        unrecorded |= not bodies or steps is None
+        said = ", ".join(x for x in (f"{steps} steps" if steps else "", f"{minutes} min" if minutes else "") if x)
+        parts.append(f"{method}{' on ' + bodies if bodies else ''}: {said or 'unrecorded'} ({len(runs)} model{'s' if len(runs) > 1 else ''})")
     return ("**Training**: per method, the body model its models trained on, their optimisation steps and training "
-            "minutes (from each run's metrics.json; a cached model counts once): " + "; ".join(parts) + ".")
+            "minutes (from each run's metrics.json; a cached model counts once): " + "; ".join(parts) + "."
+            + (" Where a body or the steps are missing, the runs predate their recording." if unrecorded else ""))
 
 
 def run_table(df: pd.DataFrame, failed: pd.DataFrame, metrics: list[str], decimals: int | None = None) -> pd.DataFrame:

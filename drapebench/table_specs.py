@@ -67,8 +67,10 @@ ONE_THREAD = "threads=1"
 # The tables of no one method: every method config's runtime and error, stability, scaling.
 TABLES = [
     TableSpec("runtime_vs_error", "every method and control (the ablations aside: their own tables hold them) on the "
-              "garments its own tables train: drape time against error, speed-ups over the physics reference run as a method",
-              ("ms_per_frame", "vertex_error_mm", "eps_e", "eps_a", "eps_c", "train_s"),
+              "garments its own tables train: drape time against error and against the physical energy (StVK + bending + "
+              "gravity, what the self-supervised losses minimise besides their collision terms), GenSim's two stages' times, speed-ups "
+              "over the physics reference run as a method",
+              ("ms_per_frame", "vertex_error_mm", "eps_e", "eps_a", "eps_c", "energy_j", "train_s", "ms_arap", "ms_pen"),
               sweeps=(Sweep("runtime_vs_error", ("garment=tshirt,skirt,dress",), reference_garments=("tshirt", "dress")),), pareto=True),
     TableSpec("stability", "the stability experiment's methods at the ends of the shape space, four stress motions, "
               "both dtypes: max strain, deepest penetration, ε_c, drift", ("max_strain", "max_penetration_mm", "eps_c", "drift_mm"), group=None,

@@ -196,6 +196,36 @@ def test_training_writes_losses_and_evaluations_csv_into_the_run_directory_and_a
     assert len(Learned.fits) == 2
 
 
+def test_a_method_trained_on_reference_drapes_gets_them_before_its_fit_clock_starts(tmp_path, monkeypatch, body_lowres):
+    """Simulating the reference set is making data, not training: it happens before ``fit``, so the training time
+    (``train_s``, timed by the fit) leaves it out."""
+    from drapebench.data import TrainData
+    from drapebench.experiment import _checkpoint
+    from methods.base import FitReport
+
+    monkeypatch.setenv("DRAPEBENCH_DATA", str(tmp_path / "data"))
+    made = []
+
+    class Supervised(DrapingMethod):
+        needs_reference, seen = True, []
+
+        def fit(self, data, train_cfg=None):
+            self.seen.append(list(made))
+            return FitReport(train_s=1.0, n_steps=1)
+
+        def drape(self, garment, seq):
+            raise NotImplementedError
+
+        def state_dict(self):
+            return {"w": torch.ones(1)}
+
+    cfg = _compose(["method=lbs", "body=anny_lowres"])
+    garment = type("G", (), {"vertices": torch.zeros(3, 3), "faces": torch.zeros(1, 3, dtype=torch.long)})()
+    data = TrainData(body_lowres, None, load_train=lambda: made.append("reference set") or [])
+    _checkpoint(Supervised(), cfg, garment, data, {**OmegaConf.to_container(cfg.train, resolve=True), "dataset": None})
+    assert Supervised.seen == [["reference set"]]  # made once, before the fit
+
+
 def _fresh(extra=()):
     """A config whose test sequence nothing has cached yet (a new motion seed), so cache use is observable."""
     seed = int.from_bytes(os.urandom(3), "little")

@@ -494,7 +494,7 @@ def test_a_table_names_each_trained_methods_body_steps_and_minutes(tmp_path):
         path.write_text(json.dumps(rec))
     shutil.copytree(tmp_path / "0_gaps_tshirt", tmp_path / "5_gaps_tshirt")  # a second run of seed 0's model counts once
     note = training_note(collect([tmp_path]))
-    assert "gaps on anny_lowres, 2,900-3,300 steps, 10.0-12.0 min (3 models)." in note and "pbs" not in note
+    assert "gaps on anny_lowres: 2,900-3,300 steps, 10.0-12.0 min (3 models)." in note and "pbs" not in note and "predate" not in note
     text = write_table([tmp_path], "baseline", tmp_path / "out" / "t", command="pytest")
     assert all("**Training**" in p.read_text() for p in text[:3])  # .md, .tex and .csv
 

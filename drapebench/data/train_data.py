@@ -71,6 +71,11 @@ class TrainData:
         view._train, view._val = self._train, self._val
         return view
 
+    def load_train(self) -> None:
+        """Read the training sequences now (for reference drapes: simulate those the cache lacks), so that a
+        fit's training time does not include making its data."""
+        self._train.get()
+
     @property
     def train_source(self):
         """The training sequences as given by ``load_train`` (a lazy H5Sequences keeps poses on disk until read)."""
