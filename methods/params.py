@@ -14,7 +14,7 @@ import dataclasses
 import typing
 from typing import Any, Mapping
 
-from drapebench.keys import check_known, check_type, hint_of
+from drapebench.keys import check_known, check_type, hint_of, is_number
 from drapebench.schema import TrainConf
 
 TRAIN_KEYS = tuple(f.name for f in dataclasses.fields(TrainConf))  # what a method's ``schedule`` may set
@@ -54,13 +54,32 @@ def typed_params(cls: type, cfg: Mapping[str, Any] | None, method: str, section:
     return cls(**values)
 
 
-def params_dict(cls: type, cfg: Mapping[str, Any] | None, method: str) -> dict:
+def params_dict(cls: type, cfg: Mapping[str, Any] | None, method: str, section: str = "") -> dict:
     """:func:`typed_params` as the nested dict the methods read (``dataclasses.asdict``: sections as dicts, tuples
-    kept as tuples, the field order as declared)."""
-    return dataclasses.asdict(typed_params(cls, cfg, method))
+    kept as tuples, the field order as declared); ``section``: the section of ``method.params`` that ``cfg`` is."""
+    return dataclasses.asdict(typed_params(cls, cfg, method, section))
 
 
 def schedule(**defaults):
     """A ``schedule`` field: values of the training budget (``conf/train``, :class:`drapebench.schema.TrainConf`'s
     keys) that a method sets otherwise, ``defaults`` unless ``method.params`` changes some."""
     return dataclasses.field(default_factory=lambda: dict(defaults), metadata={"keys": TRAIN_KEYS, "types": TrainConf})
+
+
+def at_least(method: str, section: str, params, **least) -> None:
+    """Raise ValueError naming ``method.params.<section><key>`` for the first key of ``least`` whose value in
+    ``params`` (a parameters dataclass) is not a number at least its bound (NaN included). ``section``: "" or
+    e.g. "train."."""
+    for key, bound in least.items():
+        value = getattr(params, key)
+        if not is_number(value) or not value >= bound:
+            raise ValueError(f"{method} parameter method.params.{section}{key} must be >= {bound}, got {value!r}")
+
+
+def positive(method: str, section: str, params, *keys: str) -> None:
+    """Raise ValueError naming ``method.params.<section><key>`` for the first of ``keys`` whose value in ``params``
+    is not a positive number."""
+    for key in keys:
+        value = getattr(params, key)
+        if not is_number(value) or not value > 0:
+            raise ValueError(f"{method} parameter method.params.{section}{key} must be > 0, got {value!r}")

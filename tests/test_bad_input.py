@@ -260,6 +260,7 @@ def test_betas_outside_the_training_range_warn(caplog):
     assert warn_untrained_shape([1.0, 2.0], {"dataset": "train_small"}, (0.5, 2.0), "gaps") == [0]
     assert methods.get("gaps")({"train": {"beta_range": [0.5, 2.0]}}).trained_beta_bound() == (0.5, 2.0)  # what the run passes
     assert methods.get("gaps")({}).trained_beta_bound() == (2.0, 2.0, 2.0, 2.0)  # GapsTrain's default, the code's
+    assert methods.get("gaps")({"single_shape": True}).trained_beta_bound() == (0.0, 0.0, 0.0, 0.0)  # ncs_like: the mean body only
     assert methods.get("gensim")({}).trained_beta_bound() is None  # GenSim's shapes are its dataset's
 
 

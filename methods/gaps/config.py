@@ -10,8 +10,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Literal, Mapping
 
+from drapebench.keys import is_number
 from drapebench.optimum import SolverSettings
-from methods.params import params_dict, schedule
+from methods.params import at_least, params_dict, positive, schedule
 
 
 @dataclass(frozen=True)
@@ -28,6 +29,12 @@ class GapsTrain:
     exclude_motions: tuple[str, ...] = ()  # motions of the training dataset left out of GAPS's training windows
     redraw_motions: bool = False  # each epoch after the first trains on a new draw of train.dataset (new motions and shapes)
     schedule: dict = schedule()  # overrides of the budget (conf/train) for GAPS alone, e.g. {lr: 1.0e-3, grad_clip: 50}
+
+    def __post_init__(self) -> None:
+        at_least("gaps", "train.", self, window=1, kext_ramp_epochs=0, hidden_init_std=0, output_smoothing=0, lr_output_factor=0)
+        positive("gaps", "train.", self, "output_adam_eps")
+        if any(not is_number(r) or r < 0 for r in self.beta_range):
+            raise ValueError(f"gaps parameter method.params.train.beta_range holds the half-widths (>= 0) of the shapes training draws, got {list(self.beta_range)}")
 
 
 @dataclass(frozen=True)
@@ -64,6 +71,15 @@ class GapsParams:
     collision_postprocess: bool = False  # SNUG's push-out at inference; off unless a config asks for it
     train: GapsTrain = field(default_factory=GapsTrain)
 
+    def __post_init__(self) -> None:
+        positive("gaps", "", self, "rbf_k")  # 0: every RBF weight 0/0
+        at_least("gaps", "", self, collision_eps=0, relax_clearance=0, smooth_iterations=0, relax_components=0, relax_iterations=0,
+                 inextensibility_weight=0, collision_weight=0, hidden=1, layers=1, basis_modes=1)  # fmt: skip
+        if self.relax_inextensibility_weight is not None:
+            at_least("gaps", "", self, relax_inextensibility_weight=0)
+        if not self.relax_grid or any(not is_number(v) for v in self.relax_grid):
+            raise ValueError(f"gaps parameter method.params.relax_grid lists the shape-offset values the relaxation solves at (numbers), got {list(self.relax_grid)}")
+
 
 ADDED_KEYS = dict(canonical="template", relax_grid=(-2.0, 0.0, 2.0), relax_components=2, relax_iterations=200, relax_clearance=2e-3,
                   relax_inextensibility_weight=None, bending_scale="rest", bending_blend="distance",
@@ -85,5 +101,6 @@ def gaps_params(cfg: Mapping[str, Any] | None) -> dict:
 
 def optimum_params(cfg: Mapping[str, Any] | None) -> dict:
     """The solver settings of ``gaps_optimum`` as a dict: :class:`GapsOptimumSettings` from ``cfg``
-    (``method.params.optimum``). Raises ValueError naming an unknown key or an invalid solver."""
-    return params_dict(GapsOptimumSettings, cfg, "gaps_optimum")
+    (``method.params.optimum``). Raises ValueError naming an unknown key (as ``method.params.optimum.<key>``), an
+    invalid solver, or a section given as null or a scalar."""
+    return params_dict(GapsOptimumSettings, cfg, "gaps_optimum", section="optimum")

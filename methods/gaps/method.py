@@ -123,8 +123,10 @@ class GAPS(DrapingMethod):
 
     # ------------------------------------------------------------------ training
     def trained_beta_bound(self) -> tuple[float, ...]:
-        """``train.beta_range``: training draws beta_k ~ U(-r_k, r_k) on its first components (0 after)."""
-        return tuple(self.p["train"]["beta_range"])
+        """``train.beta_range``: training draws beta_k ~ U(-r_k, r_k) on its first components (0 after); all 0
+        with ``single_shape`` (NCS: the mean body only)."""
+        bound = tuple(self.p["train"]["beta_range"])
+        return tuple(0.0 for _ in bound) if self.p["single_shape"] else bound
 
     def fit(self, data, train_cfg=None) -> FitReport:
         """Self-supervised training on ``data.train_sequences`` with :func:`drapebench.train.train` under the

@@ -29,7 +29,7 @@ class GapsOptimum(GAPS):
 
     def __init__(self, cfg=None):
         cfg = dict(cfg or {})
-        self.o = optimum_params(cfg.pop("optimum", None))
+        self.o = optimum_params(cfg.pop("optimum", {}))  # absent: the defaults; null: refused
         super().__init__(cfg)
 
     def fit(self, data, train_cfg=None) -> FitReport:

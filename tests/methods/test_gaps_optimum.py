@@ -77,7 +77,7 @@ def test_the_method_drapes_without_training_and_keeps_no_state(scene):
     assert res.vertices.shape == (2, g.n_vertices, 3) and torch.isfinite(res.vertices).all()
     assert set(res.timings_ms) == {"setup", "skinning", "optimum"} and res.extras["start"].shape == res.vertices.shape
     assert m.state_dict() == {}
-    with pytest.raises(ValueError, match="unknown gaps_optimum parameter"):
+    with pytest.raises(ValueError, match=r"unknown gaps_optimum optimum parameter\(s\) \[.iters.\] \(method.params.optimum\)"):
         methods.get("gaps_optimum")({"optimum": {"iters": 3}})
     with pytest.raises(ValueError, match="solver must be one of"):
         methods.get("gaps_optimum")({"optimum": {"solver": "sgd"}})

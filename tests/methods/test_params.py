@@ -77,3 +77,33 @@ def test_a_mapping_entry_takes_the_type_of_its_default_and_steps_may_be_none():
     with pytest.raises(ValueError, match=r"gensim parameter weights.bending must be a float, not 'abc'"):
         gensim_params({"weights": {"bending": "abc"}})
     assert typed_params(Outer, {"inner": {"schedule": {"steps": None, "grad_clip": 1}}}, "toy").inner.schedule["steps"] is None
+
+
+@pytest.mark.parametrize("given, message", [
+    ({"rbf_k": 0}, r"^gaps parameter method.params.rbf_k must be > 0, got 0$"),  # every RBF weight 0/0: NaN skinning
+    ({"hidden": 0}, r"method.params.hidden must be >= 1, got 0"),
+    ({"collision_eps": -0.001}, r"method.params.collision_eps must be >= 0"),
+    ({"relax_inextensibility_weight": -1.0}, r"method.params.relax_inextensibility_weight must be >= 0"),
+    ({"relax_grid": []}, r"method.params.relax_grid lists the shape-offset values"),
+    ({"train": {"window": 0}}, r"method.params.train.window must be >= 1, got 0"),
+    ({"train": {"output_adam_eps": 0.0}}, r"method.params.train.output_adam_eps must be > 0"),
+    ({"train": {"beta_range": [2.0, -1.0]}}, r"method.params.train.beta_range holds the half-widths \(>= 0\)"),
+])
+def test_a_gaps_value_out_of_its_range_is_named_before_the_scene_is_built(given, message):
+    from methods.gaps.config import gaps_params
+
+    with pytest.raises(ValueError, match=message):
+        gaps_params(given)
+    assert gaps_params({"collision_eps": 0, "relax_inextensibility_weight": None})["collision_eps"] == 0  # the bounds themselves pass
+
+
+def test_a_section_of_method_params_is_named_with_its_path():
+    """gaps_optimum's solver settings are ``method.params.optimum``: a bad key names that path, and a section set
+    to null is refused instead of silently taking the defaults."""
+    from methods.gaps.config import optimum_params
+
+    with pytest.raises(ValueError, match=r"optimum.iterations must be an int, not 'x' \(method.params.optimum.iterations=...\)"):
+        optimum_params({"iterations": "x"})
+    with pytest.raises(ValueError, match=r"gaps_optimum parameter optimum is a section of keys"):
+        optimum_params(None)
+    assert optimum_params({})["solver"] == "lbfgs"
