@@ -33,6 +33,7 @@ from drapebench.garments.factory import garment_label
 from drapebench.results import METRICS, environment, git_commit, headline
 from drapebench.scene import Scene
 from drapebench.schema import check_keys, choice
+from drapebench.staleness import changed_since
 from drapebench.tracker import track_run
 from drapebench.train.checkpoint import write_losses
 
@@ -158,6 +159,15 @@ def checkpoint_path(method, cfg: DictConfig, garment, body, train_cfg: dict | No
                             body_key(method.trained_body(body)), OmegaConf.to_container(cfg.material, resolve=True), prefix=cfg.method.name, suffix=".pt")  # fmt: skip
 
 
+def loadable_checkpoint(path: Path, impl: str) -> bool:
+    """Whether a run would load the checkpoint at ``path`` rather than train: it is sealed in the cache and was not
+    trained by ``methods/<impl>`` code that has changed since (:func:`drapebench.staleness.changed_since`)."""
+    if not CHECKPOINTS.sealed(path):
+        return False
+    state = torch.load(path, map_location="cpu", weights_only=False, mmap=True)
+    return changed_since(impl, state.get("commit", "unrecorded")) is None
+
+
 class Trained(NamedTuple):
     """Where a run's model came from (:func:`_checkpoint`). ``train_s``: its training time (s); ``checkpoint``: its
     path; ``stopped``: how its training ended ("done"; "clock": its lr decayed by ``train.max_minutes``' clock;
@@ -178,9 +188,15 @@ def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir
     (not for a generic method) + the body it trains on (``method.trained_body``) + material) matches. ``log_dir`` (passed to ``fit`` as the train config's ``log_dir``
     entry, for live logs) gets the fit's ``losses.csv`` (per step) and, when the method evaluates per epoch,
     ``evaluations.csv``, the same from a fresh fit or a loaded checkpoint. A "clock" or "time" training is warned
-    again on every load (the key holds the configuration, not the code or the machine's speed)."""
+    again on every load (the key holds the configuration, not the code or the machine's speed); a checkpoint
+    trained at a commit whose ``methods/<impl>`` code differs from this one's (:func:`drapebench.staleness.changed_since`)
+    is trained again, as a table would call its rows stale."""
     path = checkpoint_path(method, cfg, garment, data.body, train_cfg)
     state = CHECKPOINTS.load(path, partial(torch.load, map_location="cpu", weights_only=False), force=bool(cfg.force))
+    if state is not None and (older := changed_since(cfg.method.impl, state.get("commit", "unrecorded"))):
+        log.warning("checkpoint %s was trained by methods/%s as of %s, whose code has changed since (drapebench.staleness): "
+                    "training it again", path.name, cfg.method.impl, older[:7])  # fmt: skip
+        state = None
     if state is not None:
         method.bind(data.body, data.material)
         method.load_state_dict(state["method"])

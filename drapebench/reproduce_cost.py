@@ -5,8 +5,9 @@ A training is identified as a checkpoint is (``drapebench.experiment``): the met
 data, the body, the material, the seed, and the garment unless the method is generic (one model for any garment);
 a method that learns nothing (``learns`` False) or a run with ``train.epochs=0`` needs none. The trainings already
 in the checkpoint cache are counted apart (:func:`cached`, which builds each training's scene for its content hash):
-the trainings not cached are what is left to train, the runs themselves then only drape and score. A training
-cached by another commit's code is loaded all the same (a checkpoint is keyed by configuration, not by code).
+the trainings not cached are what is left to train, the runs themselves then only drape and score. A checkpoint
+is keyed by configuration; one trained by code of the method that has changed since is trained again by the run, so
+it counts as not cached.
 """
 
 from __future__ import annotations
@@ -89,16 +90,16 @@ def tally(jobs: list) -> dict:
 
 
 def _sealed(cfg, scenes: dict) -> bool:
-    """Whether the training the composed run config ``cfg`` needs has a sealed checkpoint at the path the run itself
-    would load (:func:`drapebench.experiment.checkpoint_path`); ``scenes`` (scene key -> scene) builds each distinct
-    scene once."""
+    """Whether the training the composed run config ``cfg`` needs has a checkpoint the run itself would load
+    (:func:`drapebench.experiment.loadable_checkpoint` at :func:`drapebench.experiment.checkpoint_path`: sealed, and
+    not trained by since-changed code); ``scenes`` (scene key -> scene) builds each distinct scene once."""
     from omegaconf import OmegaConf
 
-    from drapebench.experiment import CHECKPOINTS, checkpoint_path, method_class
+    from drapebench.experiment import checkpoint_path, loadable_checkpoint, method_class
 
     scene = _scene(cfg, scenes)
     method = method_class(cfg)(OmegaConf.to_container(cfg.method.params, resolve=True))
-    return CHECKPOINTS.sealed(checkpoint_path(method, cfg, scene.garment, scene.body))
+    return loadable_checkpoint(checkpoint_path(method, cfg, scene.garment, scene.body), cfg.method.impl)
 
 
 def _scene(cfg, scenes: dict):

@@ -206,6 +206,14 @@ def _trained_by_other_code(impl: str, trained_at: list, code: dict | None) -> st
     return None
 
 
+def changed_since(impl: str, commit: str) -> str | None:
+    """The full hash of ``commit`` when git knows it and ``impl``'s code (:func:`fingerprint`) there differs from the
+    working tree's; None when it is the same, or when ``commit`` cannot be checked ("unrecorded", uncommitted
+    changes, a commit this repository does not have)."""
+    full = known(commit)
+    return full if full is not None and fingerprint(impl, full) != fingerprint(impl) else None
+
+
 def impls() -> list:
     """Every implementation folder under ``methods/`` (those with an ``__init__.py``)."""
     return sorted(p.parent.name for p in (PROJECT_ROOT / "methods").glob("*/__init__.py"))

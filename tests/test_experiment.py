@@ -196,6 +196,57 @@ def test_training_writes_losses_and_evaluations_csv_into_the_run_directory_and_a
     assert len(Learned.fits) == 2
 
 
+def test_a_checkpoint_trained_by_since_changed_method_code_is_trained_again(tmp_path, monkeypatch, body_lowres, caplog):
+    """A checkpoint is keyed by configuration; one whose training commit's ``methods/<impl>`` differs from the
+    working tree's would give a stale row, so the run trains it again and the dry run counts it as not cached."""
+    import drapebench.experiment as experiment
+    from drapebench.results import git_commit
+    from drapebench.staleness import changed_since
+    from methods.base import FitReport
+
+    monkeypatch.setenv("DRAPEBENCH_DATA", str(tmp_path / "data"))
+
+    class Learned(DrapingMethod):
+        fits = []
+
+        def fit(self, data, train_cfg=None):
+            self.fits.append(1)
+            return FitReport(train_s=1.0, n_steps=1)
+
+        def drape(self, garment, seq):
+            raise NotImplementedError
+
+        def state_dict(self):
+            return {"w": torch.ones(2)}
+
+        def load_state_dict(self, state):
+            pass
+
+    cfg = _compose(["method=lbs", "body=anny_lowres"])
+    garment = type("G", (), {"vertices": torch.zeros(3, 3), "faces": torch.zeros(1, 3, dtype=torch.long)})()
+    data = type("D", (), {"body": body_lowres, "material": None})()
+    train_cfg = {**OmegaConf.to_container(cfg.train, resolve=True), "dataset": None}
+    path = experiment._checkpoint(Learned(), cfg, garment, data, train_cfg).checkpoint
+    experiment._checkpoint(Learned(), cfg, garment, data, train_cfg)
+    assert len(Learned.fits) == 1 and experiment.loadable_checkpoint(Path(path), "lbs")  # the same code: loaded
+    assert changed_since("lbs", "unrecorded") is None and changed_since("lbs", "0" * 40) is None  # cannot be checked: loaded
+    monkeypatch.setattr(experiment, "changed_since", lambda impl, commit: commit if commit == git_commit() else None)
+    assert not experiment.loadable_checkpoint(Path(path), "lbs")
+    with caplog.at_level(logging.WARNING, logger="drapebench"):
+        experiment._checkpoint(Learned(), cfg, garment, data, train_cfg)
+    assert len(Learned.fits) == 2 and "whose code has changed since" in caplog.text
+
+
+def test_changed_since_compares_the_fingerprints_at_a_known_commit(monkeypatch):
+    import drapebench.staleness as staleness
+
+    head = staleness.known("HEAD")
+    monkeypatch.setattr(staleness, "fingerprint", lambda impl, commit=None: "old" if commit == head else "new")
+    assert staleness.changed_since("gaps", head) == head
+    monkeypatch.setattr(staleness, "fingerprint", lambda impl, commit=None: "same")
+    assert staleness.changed_since("gaps", head) is None
+
+
 def test_a_method_trained_on_reference_drapes_gets_them_before_its_fit_clock_starts(tmp_path, monkeypatch, body_lowres):
     """Simulating the reference set is making data, not training: it happens before ``fit``, so the training time
     (``train_s``, timed by the fit) leaves it out."""

@@ -189,6 +189,7 @@ def test_the_cost_counts_the_reference_sets_that_uncached_trainings_build_first(
 def test_the_cost_counts_a_cached_checkpoint_where_the_run_would_load_it():
     """A checkpoint stored at the path the run computes (drapebench.experiment.checkpoint_path) is counted as cached for
     its training alone; one stored under another seed's key is not."""
+    import torch
     from omegaconf import OmegaConf
 
     from drapebench.experiment import CHECKPOINTS, checkpoint_path, method_class
@@ -201,7 +202,7 @@ def test_the_cost_counts_a_cached_checkpoint_where_the_run_would_load_it():
     cfg = next(c for c in configs if c.seed == 1)
     scene = Scene.from_config(cfg, device="cpu")
     method = method_class(cfg)(OmegaConf.to_container(cfg.method.params, resolve=True))
-    CHECKPOINTS.store(checkpoint_path(method, cfg, scene.garment, scene.body), lambda tmp: Path(tmp).write_bytes(b"model"))
+    CHECKPOINTS.store(checkpoint_path(method, cfg, scene.garment, scene.body), lambda tmp: torch.save({"method": {}, "commit": "unrecorded"}, tmp))
     assert cached(configs) == [c.seed == 1 for c in configs]
 
 
