@@ -211,7 +211,7 @@ def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir
                         "steps: its model depends on the speed of the machine that trained it; force=true retrains it", path.name)  # fmt: skip
         return Trained(state["train_s"], str(path), stopped, state.get("commit", "unrecorded"), state.get("n_steps"), method.trained_body(data.body).name)
     if method.needs_reference:  # its reference drapes are simulated (or read) before the fit's clock starts: data, not training
-        data.load_train()
+        data.read_train()
     report = method.fit(data, train_cfg if log_dir is None else {**train_cfg, "log_dir": str(log_dir)})
     _write_fit_logs(log_dir, report.history, report.evaluations)
     state = method.state_dict()

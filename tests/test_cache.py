@@ -229,7 +229,7 @@ def _checkpoint(monkeypatch, body):
     from drapebench.experiment import _checkpoint
 
     calls = []
-    cfg = OmegaConf.create({"force": False, "method": {"name": "fake"}, "material": {"density": 0.2}})
+    cfg = OmegaConf.create({"force": False, "method": {"name": "fake", "impl": "lbs"}, "material": {"density": 0.2}})
     g = SimpleNamespace(vertices=torch.zeros(3, 3), faces=torch.zeros(1, 3, dtype=torch.long))
     data = SimpleNamespace(body=body, material=None)
 

@@ -497,6 +497,12 @@ def test_a_table_names_each_trained_methods_body_steps_and_minutes(tmp_path):
     assert "gaps on anny_lowres: 2,900-3,300 steps, 10.0-12.0 min (3 models)." in note and "pbs" not in note and "predate" not in note
     text = write_table([tmp_path], "baseline", tmp_path / "out" / "t", command="pytest")
     assert all("**Training**" in p.read_text() for p in text[:3])  # .md, .tex and .csv
+    for seed in range(3):  # runs made before the body and steps were recorded
+        path = tmp_path / f"{seed}_gaps_tshirt" / "metrics.json"
+        path.write_text(json.dumps({k: v for k, v in json.loads(path.read_text()).items() if k not in ("train_steps", "train_body")}))
+    shutil.rmtree(tmp_path / "5_gaps_tshirt")
+    note = training_note(collect([tmp_path]))
+    assert "gaps: 10.0-12.0 min (3 models)." in note and "the runs predate their recording" in note
 
 
 def test_a_per_run_table_keeps_seeds_apart(tmp_path):

@@ -71,7 +71,7 @@ class TrainData:
         view._train, view._val = self._train, self._val
         return view
 
-    def load_train(self) -> None:
+    def read_train(self) -> None:
         """Read the training sequences now (for reference drapes: simulate those the cache lacks), so that a
         fit's training time does not include making its data."""
         self._train.get()
