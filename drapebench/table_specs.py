@@ -68,7 +68,7 @@ ONE_THREAD = "threads=1"
 TABLES = [
     TableSpec("runtime_vs_error", "every method and control (the ablations aside: their own tables hold them) on the "
               "garments its own tables train: drape time against error and against the physical energy (StVK + bending + "
-              "gravity, what the self-supervised losses minimise besides their collision terms), GenSim's two stages' times, speed-ups "
+              "gravity, what the self-supervised losses minimise besides their collision terms), the ARAP and PEN stage times, speed-ups "
               "over the physics reference run as a method",
               ("ms_per_frame", "vertex_error_mm", "eps_e", "eps_a", "eps_c", "energy_j", "train_s", "ms_arap", "ms_pen"),
               sweeps=(Sweep("runtime_vs_error", ("garment=tshirt,skirt,dress",), reference_garments=("tshirt", "dress")),), pareto=True),
