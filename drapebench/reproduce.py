@@ -180,28 +180,48 @@ def worker_cpus(workers: int) -> list:
     return [set(cores[k % len(cores) :: workers]) or {cores[k % len(cores)]} for k in range(workers)]
 
 
+def time_left(took: dict, waiting: list, trains: set, workers: int) -> str:
+    """", about H:MM:SS left (n trainings, m other runs)" for the jobs ``waiting``: per kind (a run that trains a model,
+    its folder in ``trains``, or one that does not) the mean wall time of the runs of that kind finished
+    (``took``: {folder: (seconds, trained)}; a kind none of whose runs has finished takes the other's), over
+    ``workers``; "" before any run has finished."""
+    if not took:
+        return ""
+    mean = {kind: [s for s, t in took.values() if t == kind] for kind in (True, False)}
+    every = [s for s, _ in took.values()]
+    per = {kind: sum(v) / len(v) if v else sum(every) / len(every) for kind, v in mean.items()}
+    n_train = sum(j.dir in trains for j in waiting)
+    seconds = (n_train * per[True] + (len(waiting) - n_train) * per[False]) / max(workers, 1)
+    return f", about {_clock(seconds)} left ({n_train} trainings, {len(waiting) - n_train} other runs)"
+
+
 def run_all(jobs: list, at: str, say=print, workers: int = 1, runner=run_job) -> list:
     """Run the unfinished ``jobs`` in order, saying per run its place, what it is and an estimate of the time left
-    (the wall time so far per run finished in this call, times the runs left); ``workers`` > 1 runs that many at
-    once, each worker pinned to its cores (:func:`worker_cpus`) and taking the next group of runs that share a model
-    (:func:`drapebench.reproduce_cost.groups`) in order. Returns the jobs that did not finish."""
+    (:func:`time_left`: the runs left that train a model and the others, each at the mean wall time of its kind so
+    far); ``workers`` > 1 runs that many at once, each worker pinned to its cores (:func:`worker_cpus`) and taking
+    the next group of runs that share a model (:func:`drapebench.reproduce_cost.groups`) in order. Returns the jobs
+    that did not finish."""
     import threading
     from concurrent.futures import ThreadPoolExecutor
+
+    from drapebench.reproduce_cost import grouped
 
     todo = [j for j in jobs if not finished(j, at)]
     say(f"{len(jobs)} runs, {len(jobs) - len(todo)} already finished at {at[:12] + (' with uncommitted changes' if '-dirty' in at else '')}, {len(todo)} to run"
         + (f", {workers} at once" if workers > 1 else ""))
-    failed, start, lock, counter = [], time.monotonic(), threading.Lock(), iter(range(1, len(todo) + 1))
-    done = [0]
+    say("grouping the runs by the model they share ...")
+    group_list, trains = grouped(todo) if todo else ([], set())
+    failed, lock, counter, took, waiting = [], threading.Lock(), iter(range(1, len(todo) + 1)), {}, list(todo)
 
     def one(job: Job, cpus) -> None:
         with lock:
             i = next(counter)
-            left = "" if not done[0] else f", about {_clock((time.monotonic() - start) / done[0] * (len(todo) - i + 1))} left"
-            say(f"[{i}/{len(todo)}] {job.table}: {job.sweep.experiment} {' '.join(job.overrides)}{left}")
+            waiting.remove(job)
+            say(f"[{i}/{len(todo)}] {job.table}: {job.sweep.experiment} {' '.join(job.overrides)}{time_left(took, waiting, trains, workers)}")
+        t0 = time.monotonic()
         code = runner(job, at, cpus)
         with lock:
-            done[0] += 1
+            took[job.dir] = (time.monotonic() - t0, job.dir in trains)
             if code != 0 and not finished(job, at):
                 failed.append(job)
                 say(f"    stopped without a result; its log: {job.dir.parent / (job.dir.name + '.log')}")
@@ -210,10 +230,7 @@ def run_all(jobs: list, at: str, say=print, workers: int = 1, runner=run_job) ->
         for job in todo:
             one(job, None)
         return failed
-    from drapebench.reproduce_cost import groups
-
-    say("grouping the runs by the model they share ...")
-    queue, cpus = iter(groups(todo)), worker_cpus(workers)
+    queue, cpus = iter(group_list), worker_cpus(workers)
 
     def worker(k: int) -> None:
         while True:

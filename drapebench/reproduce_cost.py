@@ -60,20 +60,29 @@ def groups(jobs: list) -> list:
     they build (data preset, garment, body), the others by the training they load (:func:`training_identity`); a
     run that trains nothing, or whose training is in the checkpoint cache already (it only loads it), is a group of
     its own. Run at once, two groups never train one model twice."""
+    return grouped(jobs)[0]
+
+
+def grouped(jobs: list) -> tuple[list, set]:
+    """:func:`groups` of ``jobs`` and the set of the jobs (their folders) that train a model: the first run of each
+    training not in the checkpoint cache (the others of its group load it), for an estimate of the time left."""
     from omegaconf import OmegaConf
 
     from drapebench.experiment import method_class
 
-    out, methods, scenes = {}, {}, {}
+    out, methods, scenes, trains, seen = {}, {}, {}, set(), set()
     for k, (job, cfg) in enumerate(_composed(jobs)):
         identity = training_identity(cfg, methods)
         if identity is not None and _sealed(cfg, scenes):
             identity = None
+        if identity is not None and identity not in seen:
+            seen.add(identity)
+            trains.add(job.dir)
         if identity is not None and method_class(cfg).needs_reference:
             identity = ("reference set", repr(OmegaConf.to_container(cfg.data, resolve=True)), repr(OmegaConf.to_container(cfg.garment, resolve=True)),
                         cfg.body.name)  # fmt: skip
         out.setdefault(("run", k) if identity is None else identity, []).append(job)
-    return list(out.values())
+    return list(out.values()), trains
 
 
 def tally(jobs: list) -> dict:

@@ -239,7 +239,7 @@ def test_run_all_with_two_workers_runs_each_group_in_turn_on_one_worker(tmp_path
     from drapebench.reproduce import run_all, worker_cpus
 
     jobs = [Job("t", Sweep("x"), (f"k={i}",), tmp_path / str(i)) for i in range(6)]
-    monkeypatch.setattr(cost, "groups", lambda todo: [todo[0:3], todo[3:5], todo[5:]])
+    monkeypatch.setattr(cost, "grouped", lambda todo: ([todo[0:3], todo[3:5], todo[5:]], {todo[0].dir}))
     ran = []
 
     def runner(job, at, cpus):
@@ -266,6 +266,20 @@ def test_run_all_with_two_workers_runs_each_group_in_turn_on_one_worker(tmp_path
     assert len(cpus) == 2 and all(c is None or len(c) >= 1 for c in cpus)
     if cpus[0] is not None and len(os.sched_getaffinity(0)) >= 2:
         assert not cpus[0] & cpus[1]  # two cores or more: each worker its own
+
+
+def test_the_time_left_counts_the_trainings_left_at_a_trainings_time_and_the_other_runs_at_theirs(tmp_path):
+    """A regeneration starts with trainings (minutes each) and goes on with runs that load them (seconds): the
+    estimate weighs each kind by its own mean, not every run by the first trainings'."""
+    from drapebench.reproduce import time_left
+
+    jobs = [Job("t", Sweep("x"), (f"k={i}",), tmp_path / str(i)) for i in range(10)]
+    trains = {jobs[0].dir, jobs[1].dir, jobs[5].dir}
+    assert time_left({}, jobs[1:], trains, 1) == ""  # nothing finished: no estimate
+    took = {jobs[0].dir: (600.0, True)}  # one training of 10 minutes so far: the other runs are assumed as long
+    assert time_left(took, jobs[2:], trains, 2) == ", about 0:40:00 left (1 trainings, 7 other runs)"
+    took[jobs[2].dir] = (6.0, False)
+    assert time_left(took, jobs[3:], trains, 1) == ", about 0:10:36 left (1 trainings, 6 other runs)"
 
 
 def test_a_benchmark_table_names_an_output_path_anyone_can_rerun(monkeypatch):
