@@ -102,7 +102,7 @@ def read_table(path: Path) -> Table:
 
 KINDS = ("order", "order_groups", "level", "within", "untested")
 VERDICTS = ("reproduced", "holds, one seed", "holds, control not run", "partly", "scene-determined", "inside the spread",
-            "too small to tell", "not reproduced", "stale", "not run", "not testable here")  # fmt: skip
+            "too small to tell", "not reproduced, one seed", "not reproduced", "stale", "not run", "not testable here")  # fmt: skip
 RULES = (
     "A claim is tested case by case (a group x metric x pair of rows; cases with the same numbers, a quantity that "
     "does not depend on the group, count once). A case **holds** when its relation holds on the means, the two bands "
@@ -116,7 +116,8 @@ RULES = (
     "unknown); **holds, control not run**: it holds but the table has no control row; **partly (k/m)**: k of m "
     "distinct cases hold (and the control fails them); **scene-determined**: the cases that hold, the control "
     "meets them too; **inside the spread**: no case holds or fails beyond the bands; **too small to tell**: every difference is "
-    "under the floor; **not reproduced**: no case holds and one holds the other way; **stale: ...**: a row it reads "
+    "under the floor; **not reproduced**: no case holds and one holds the other way (**not reproduced, one seed**: "
+    "each such case on one-seed cells, spread unknown); **stale: ...**: a row it reads "
     "comes from another commit than its table's or from method code that has changed since, or its model was trained "
     "(and cached) by such code (what its rows "
     "would give follows, *holds* where they would reproduce it: a stale claim can hold, never reproduce); **not run**: a cell it needs is missing or failed; **not "
@@ -301,8 +302,8 @@ def evaluate(claim: Claim, table: Table | None, floors: dict | None = None, code
         verdict = "reproduced" if all(c.seeds() > 1 for c in distinct) else "holds, one seed"
     elif k > 0:
         verdict = f"partly ({k}/{m})"
-    elif "against" in outcomes:
-        verdict = "not reproduced"
+    elif "against" in outcomes:  # on one seed both ways: a single run's spread is unknown
+        verdict = "not reproduced" if any(c.seeds() > 1 for c in distinct if outcome[c.key()] == "against") else "not reproduced, one seed"
     elif held:
         verdict = f"scene-determined (the control meets {len(held)}/{m} as well)"
     elif all(o == "small" for o in outcomes):
