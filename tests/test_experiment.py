@@ -206,21 +206,12 @@ def test_a_checkpoint_trained_by_since_changed_method_code_is_trained_again(tmp_
 
     monkeypatch.setenv("DRAPEBENCH_DATA", str(tmp_path / "data"))
 
-    class Learned(DrapingMethod):
+    class Learned(_ConstantState):
         fits = []
 
         def fit(self, data, train_cfg=None):
             self.fits.append(1)
             return FitReport(train_s=1.0, n_steps=1)
-
-        def drape(self, garment, seq):
-            raise NotImplementedError
-
-        def state_dict(self):
-            return {"w": torch.ones(2)}
-
-        def load_state_dict(self, state):
-            pass
 
     cfg = _compose(["method=lbs", "body=anny_lowres"])
     garment = type("G", (), {"vertices": torch.zeros(3, 3), "faces": torch.zeros(1, 3, dtype=torch.long)})()
@@ -257,18 +248,12 @@ def test_a_method_trained_on_reference_drapes_gets_them_before_its_fit_clock_sta
     monkeypatch.setenv("DRAPEBENCH_DATA", str(tmp_path / "data"))
     made = []
 
-    class Supervised(DrapingMethod):
+    class Supervised(_ConstantState):
         needs_reference, seen = True, []
 
         def fit(self, data, train_cfg=None):
             self.seen.append(list(made))
             return FitReport(train_s=1.0, n_steps=1)
-
-        def drape(self, garment, seq):
-            raise NotImplementedError
-
-        def state_dict(self):
-            return {"w": torch.ones(1)}
 
     cfg = _compose(["method=lbs", "body=anny_lowres"])
     garment = type("G", (), {"vertices": torch.zeros(3, 3), "faces": torch.zeros(1, 3, dtype=torch.long)})()
