@@ -164,7 +164,10 @@ def loadable_checkpoint(path: Path, impl: str) -> bool:
     trained by ``methods/<impl>`` code that has changed since (:func:`drapebench.staleness.changed_since`)."""
     if not CHECKPOINTS.sealed(path):
         return False
-    state = torch.load(path, map_location="cpu", weights_only=False, mmap=True)
+    try:
+        state = torch.load(path, map_location="cpu", weights_only=False, mmap=True)
+    except (RuntimeError, OSError, EOFError, ValueError):  # unreadable: the run would train it again
+        return False
     return changed_since(impl, state.get("commit", "unrecorded")) is None
 
 

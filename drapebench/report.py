@@ -331,7 +331,7 @@ def training_note(df: pd.DataFrame) -> str:
     lack is left out); "" when no run loaded a trained model."""
     if "checkpoint" not in df:
         return ""
-    models = df[df["checkpoint"].notna()].drop_duplicates("checkpoint")
+    models = df[df["checkpoint"].notna()].drop_duplicates([c for c in ("checkpoint", "trained_at") if c in df])  # a retrained model keeps its path
     if models.empty:
         return ""
 

@@ -216,8 +216,8 @@ def run_all(jobs: list, at: str, say=print, workers: int = 1, runner=run_job) ->
     def one(job: Job, cpus) -> None:
         with lock:
             i = next(counter)
-            waiting.remove(job)
             say(f"[{i}/{len(todo)}] {job.table}: {job.sweep.experiment} {' '.join(job.overrides)}{time_left(took, waiting, trains, workers)}")
+            waiting.remove(job)  # counted above: the run starting now is left too
         t0 = time.monotonic()
         code = runner(job, at, cpus)
         with lock:

@@ -231,11 +231,12 @@ def test_a_checkpoint_trained_by_since_changed_method_code_is_trained_again(tmp_
 def test_changed_since_compares_the_fingerprints_at_a_known_commit(monkeypatch):
     import drapebench.staleness as staleness
 
-    head = staleness.known("HEAD")
-    monkeypatch.setattr(staleness, "fingerprint", lambda impl, commit=None: "old" if commit == head else "new")
-    assert staleness.changed_since("gaps", head) == head
-    monkeypatch.setattr(staleness, "fingerprint", lambda impl, commit=None: "same")
-    assert staleness.changed_since("gaps", head) is None
+    head, old = staleness.known("HEAD"), "a" * 40
+    monkeypatch.setattr(staleness, "known", lambda c: {"HEAD": head, old: old}.get(c))
+    monkeypatch.setattr(staleness, "fingerprint", lambda impl, commit=None: "old" if commit == old else "disk" if commit is None else "head")
+    assert staleness.changed_since("gaps", old) == old  # trained by other code than the checked-out commit's
+    assert staleness.changed_since("gaps", head) is None  # the disk (an untracked file, say) differs: not a reason to retrain
+    assert staleness.changed_since("gaps", "b" * 40) is None  # a commit git does not know: loaded
 
 
 def test_a_method_trained_on_reference_drapes_gets_them_before_its_fit_clock_starts(tmp_path, monkeypatch, body_lowres):
