@@ -209,12 +209,12 @@ def _trained_by_other_code(impl: str, trained_at: list, code: dict | None) -> st
 def changed_since(impl: str, commit: str) -> str | None:
     """The full hash of ``commit`` when git knows it and ``impl``'s code (:func:`fingerprint`) there differs from the
     checked-out commit's (HEAD's: untracked files and uncommitted edits do not count, as a run's commit label
-    ignores the first and marks the second "-dirty"); None when it is the same, or when ``commit`` cannot be checked ("unrecorded", uncommitted
-    changes, a commit this repository does not have)."""
+    ignores the first and marks the second "-dirty"); None when it is the same, or when ``commit`` cannot be
+    checked ("unrecorded", uncommitted changes, a commit this repository does not have)."""
     full, head = known(commit), known("HEAD")
     if full is None or head is None:
         return None
-    return full if fingerprint(impl, full) != fingerprint(impl, head) else None  # HEAD's, not the disk's: an untracked file would retrain forever
+    return full if fingerprint(impl, full) != fingerprint(impl, head) else None
 
 
 def impls() -> list:
