@@ -16,6 +16,12 @@ import pytest
 from tests.golden_drapes import GOLDEN, SHRUNK, drapes
 
 TOLERANCE_M = 1e-5  # float32 noise on a drape of about 1 m
+# Two methods amplify float32 noise: pbs's simulation over its frames, and the VAE's short trainings (Adam turns the
+# noise of near-zero gradients into whole steps). The same code on another CPU type moved pbs by 0.094 mm at most
+# (1.9e-7 m on average) and the VAE by 0.40 mm (3.5e-5 m on average); on one machine, MKL's AVX2 path instead of its
+# AVX-512 one moved them by 0.015 / 0.42 mm (6.9e-8 / 1.3e-5 m on average) (measured 2026-11-29). Their drapes are held
+# to (mean, max) tolerances about 4x that noise: the VAE's drape departs from lbs's by 4.0e-4 m on average.
+NOISY_M = {"pbs": (1e-6, 5e-4), "vae": (1.5e-4, 2e-3)}
 
 
 @pytest.fixture(scope="module")
@@ -37,8 +43,11 @@ def test_the_file_holds_every_method_and_its_commit(golden):
 def test_each_method_drapes_as_before(name, golden, current):
     x, before = current[name], golden[name]
     assert x.shape == before.shape and np.isfinite(x).all()
-    diff = float(np.abs(x - before).max())
-    assert diff < TOLERANCE_M, f"{name}'s drape moved by up to {diff * 1e3:.4f} mm since {golden['commit']} (meant? regenerate: python -m tests.golden_drapes)"
+    mean_tol, max_tol = NOISY_M.get(name, (TOLERANCE_M, TOLERANCE_M))
+    moved = np.abs(x - before)
+    assert moved.mean() < mean_tol and moved.max() < max_tol, (
+        f"{name}'s drape moved by up to {moved.max() * 1e3:.4f} mm ({moved.mean() * 1e3:.5f} mm on average) since {golden['commit']} "
+        f"(meant? regenerate: python -m tests.golden_drapes)")  # fmt: skip
 
 
 def test_the_drapes_are_the_methods_own(golden):
