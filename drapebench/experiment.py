@@ -33,7 +33,7 @@ from drapebench.garments.factory import garment_label
 from drapebench.results import METRICS, environment, git_commit, headline
 from drapebench.scene import Scene
 from drapebench.schema import check_keys, choice
-from drapebench.staleness import changed_since
+from drapebench.staleness import code_of, trained_by_changed_code
 from drapebench.tracker import track_run
 from drapebench.train.checkpoint import write_losses
 
@@ -161,14 +161,14 @@ def checkpoint_path(method, cfg: DictConfig, garment, body, train_cfg: dict | No
 
 def loadable_checkpoint(path: Path, impl: str) -> bool:
     """Whether a run would load the checkpoint at ``path`` rather than train: it is sealed in the cache and was not
-    trained by ``methods/<impl>`` code that has changed since (:func:`drapebench.staleness.changed_since`)."""
+    trained by other ``methods/<impl>`` code than today's (:func:`drapebench.staleness.trained_by_changed_code`)."""
     if not CHECKPOINTS.sealed(path):
         return False
     try:
         state = torch.load(path, map_location="cpu", weights_only=False, mmap=True)
     except (RuntimeError, OSError, EOFError, ValueError):  # unreadable: the run would train it again
         return False
-    return changed_since(impl, state.get("commit", "unrecorded")) is None
+    return trained_by_changed_code(impl, state) is None
 
 
 class Trained(NamedTuple):
@@ -192,13 +192,13 @@ def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir
     entry, for live logs) gets the fit's ``losses.csv`` (per step) and, when the method evaluates per epoch,
     ``evaluations.csv``, the same from a fresh fit or a loaded checkpoint. A "clock" or "time" training is warned
     again on every load (the key holds the configuration, not the code or the machine's speed); a checkpoint
-    trained at a commit whose ``methods/<impl>`` code differs from this one's (:func:`drapebench.staleness.changed_since`)
-    is trained again, as a table would call its rows stale."""
+    trained by other ``methods/<impl>`` code than this checkout's (its stored fingerprint, uncommitted edits
+    included: :func:`drapebench.staleness.trained_by_changed_code`) is trained again, as a table would call its rows
+    stale."""
     path = checkpoint_path(method, cfg, garment, data.body, train_cfg)
     state = CHECKPOINTS.load(path, partial(torch.load, map_location="cpu", weights_only=False), force=bool(cfg.force))
-    if state is not None and (older := changed_since(cfg.method.impl, state.get("commit", "unrecorded"))):
-        log.warning("checkpoint %s was trained by methods/%s as of %s, whose code has changed since (drapebench.staleness): "
-                    "training it again", path.name, cfg.method.impl, older[:7])  # fmt: skip
+    if state is not None and (why := trained_by_changed_code(cfg.method.impl, state)):
+        log.warning("checkpoint %s: %s (drapebench.staleness); training it again", path.name, why)
         state = None
     if state is not None:
         method.bind(data.body, data.material)
@@ -215,6 +215,7 @@ def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir
         return Trained(state["train_s"], str(path), stopped, state.get("commit", "unrecorded"), state.get("n_steps"), method.trained_body(data.body).name)
     if method.needs_reference:  # its reference drapes are simulated (or read) before the fit's clock starts: data, not training
         data.read_train()
+    code = code_of(cfg.method.impl)  # the code that trains it, read before the fit
     report = method.fit(data, train_cfg if log_dir is None else {**train_cfg, "log_dir": str(log_dir)})
     _write_fit_logs(log_dir, report.history, report.evaluations)
     state = method.state_dict()
@@ -222,7 +223,7 @@ def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir
         return Trained(report.train_s)
     CHECKPOINTS.store(path, lambda tmp: torch.save({"method": state, "train_s": report.train_s, "history": report.history,
                                                     "evaluations": report.evaluations, "stopped": report.stopped,
-                                                    "n_steps": report.n_steps, "commit": git_commit()}, tmp))  # fmt: skip
+                                                    "n_steps": report.n_steps, "commit": git_commit(), "code": code}, tmp))  # fmt: skip
     return Trained(report.train_s, str(path), report.stopped, git_commit(), report.n_steps, method.trained_body(data.body).name)
 
 

@@ -31,7 +31,11 @@ TRAINING_CONF = ("conf/train", "conf/data")  # the training and reference-set pr
 
 
 def _git(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(["git", "-C", str(PROJECT_ROOT), *args], capture_output=True, text=True)
+    """``git -C <project> *args``; without a git binary, a failed process (every commit then reads as unknown)."""
+    try:
+        return subprocess.run(["git", "-C", str(PROJECT_ROOT), *args], capture_output=True, text=True)
+    except FileNotFoundError:
+        return subprocess.CompletedProcess(["git", *args], 127, "", "git: not found")
 
 
 @lru_cache(maxsize=None)
@@ -215,6 +219,27 @@ def changed_since(impl: str, commit: str) -> str | None:
     if full is None or head is None:
         return None
     return full if fingerprint(impl, full) != fingerprint(impl, head) else None
+
+
+def code_of(impl: str) -> str | None:
+    """The working tree's :func:`fingerprint` of the folder behind a method config's ``impl`` (``<m>_optimum``:
+    ``methods/<m>``), stored with a model it trains; None when ``impl`` names no folder under ``methods/``."""
+    folder = _folder(str(impl or ""))
+    return fingerprint(folder) if folder in impls() else None
+
+
+def trained_by_changed_code(impl: str, state) -> str | None:
+    """Why the cached model ``state`` (a checkpoint's dict) was trained by other code than this checkout's, or None.
+    Its ``code`` (:func:`code_of` when it was trained, uncommitted edits included) is compared with today's; a
+    checkpoint stored before that was recorded is judged by its ``commit`` (:func:`changed_since`). None too when
+    it cannot be checked: ``impl`` names no folder, or an old checkpoint's commit is unknown."""
+    now = code_of(impl)
+    if now is None:
+        return None
+    if state.get("code"):
+        return None if state["code"] == now else f"it was trained by methods/{_folder(impl)} code {state['code']}, which is {now} now"
+    older = changed_since(_folder(impl), state.get("commit", "unrecorded"))
+    return None if older is None else f"it was trained by methods/{_folder(impl)} as of {older[:7]}, which has changed since"
 
 
 def impls() -> list:

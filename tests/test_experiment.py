@@ -197,11 +197,11 @@ def test_training_writes_losses_and_evaluations_csv_into_the_run_directory_and_a
 
 
 def test_a_checkpoint_trained_by_since_changed_method_code_is_trained_again(tmp_path, monkeypatch, body_lowres, caplog):
-    """A checkpoint is keyed by configuration; one whose training commit's ``methods/<impl>`` differs from the
-    working tree's would give a stale row, so the run trains it again and the dry run counts it as not cached."""
+    """A checkpoint is keyed by configuration; it stores the fingerprint of the ``methods/<impl>`` code that trained it
+    (uncommitted edits included), and one trained by other code than today's would give a stale row, so the run
+    trains it again and the dry run counts it as not cached."""
     import drapebench.experiment as experiment
-    from drapebench.results import git_commit
-    from drapebench.staleness import changed_since
+    import drapebench.staleness as staleness
     from methods.base import FitReport
 
     monkeypatch.setenv("DRAPEBENCH_DATA", str(tmp_path / "data"))
@@ -218,14 +218,30 @@ def test_a_checkpoint_trained_by_since_changed_method_code_is_trained_again(tmp_
     data = type("D", (), {"body": body_lowres, "material": None})()
     train_cfg = {**OmegaConf.to_container(cfg.train, resolve=True), "dataset": None}
     path = experiment._checkpoint(Learned(), cfg, garment, data, train_cfg).checkpoint
+    assert torch.load(path, weights_only=False)["code"] == staleness.fingerprint("lbs")
     experiment._checkpoint(Learned(), cfg, garment, data, train_cfg)
     assert len(Learned.fits) == 1 and experiment.loadable_checkpoint(Path(path), "lbs")  # the same code: loaded
-    assert changed_since("lbs", "unrecorded") is None and changed_since("lbs", "0" * 40) is None  # cannot be checked: loaded
-    monkeypatch.setattr(experiment, "changed_since", lambda impl, commit: commit if commit == git_commit() else None)
+    monkeypatch.setattr(staleness, "fingerprint", lambda impl, commit=None: "edited")  # the code changed (committed or not)
     assert not experiment.loadable_checkpoint(Path(path), "lbs")
     with caplog.at_level(logging.WARNING, logger="drapebench"):
         experiment._checkpoint(Learned(), cfg, garment, data, train_cfg)
-    assert len(Learned.fits) == 2 and "whose code has changed since" in caplog.text
+    assert len(Learned.fits) == 2 and "which is edited now" in caplog.text
+
+
+def test_a_checkpoint_without_its_code_is_judged_by_its_commit(monkeypatch):
+    """A checkpoint stored before its code's fingerprint was recorded is judged by its training commit; one that cannot be
+    checked (unrecorded, a commit git does not know, an implementation that is no folder) is loaded."""
+    import drapebench.staleness as staleness
+
+    head, old = staleness.known("HEAD"), "a" * 40
+    monkeypatch.setattr(staleness, "known", lambda c: {"HEAD": head, old: old}.get(c))
+    monkeypatch.setattr(staleness, "fingerprint", lambda impl, commit=None: "old" if commit == old else "disk" if commit is None else "head")
+    assert "as of aaaaaaa" in staleness.trained_by_changed_code("gaps", {"commit": old})
+    assert staleness.trained_by_changed_code("gaps_optimum", {"commit": old}) is not None  # methods/gaps
+    assert staleness.trained_by_changed_code("gaps", {"commit": "unrecorded"}) is None
+    assert staleness.trained_by_changed_code("gaps", {"commit": "b" * 40}) is None
+    assert staleness.trained_by_changed_code("nowhere", {"commit": old}) is None and staleness.code_of(None) is None
+    assert staleness.trained_by_changed_code("gaps", {"commit": old, "code": "disk"}) is None  # its own code: loaded
 
 
 def test_changed_since_compares_the_fingerprints_at_a_known_commit(monkeypatch):
@@ -809,3 +825,21 @@ def test_what_the_user_types_as_train_keys_wins_over_a_method_s_own_budget():
     assert "lr" not in lr and lr["steps"] == schedule["steps"]
     assert method_params(cfg, set())["train"]["schedule"] == schedule
     assert method_params(_compose(["method=lbs"]), {"epochs"}) == OmegaConf.to_container(_compose(["method=lbs"]).method.params)
+
+
+def test_without_git_every_commit_reads_unknown(monkeypatch):
+    """No git binary: the history cannot be read, so no commit is known (rows read stale, checkpoints load as
+    "cannot be checked") instead of a FileNotFoundError out of every run."""
+    import subprocess
+
+    import drapebench.staleness as staleness
+
+    def no_git(*args, **kwargs):
+        raise FileNotFoundError("git")
+
+    monkeypatch.setattr(subprocess, "run", no_git)
+    staleness.known.cache_clear()
+    try:
+        assert staleness.known("HEAD") is None and staleness.changed_since("gaps", "a" * 40) is None
+    finally:
+        staleness.known.cache_clear()
