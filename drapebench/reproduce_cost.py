@@ -37,8 +37,9 @@ def training_identity(cfg, methods: dict | None = None) -> tuple | None:
 
 
 def _composed(jobs: list):
-    """(job, its composed run config) for each of ``jobs``, composing once per set of runs that differ only in keys
-    no training depends on (:data:`UNKEYED`), in the jobs' order."""
+    """(job, its composed run config, None) for each of ``jobs``, composing once per set of runs that differ only in
+    keys no training depends on (:data:`UNKEYED`), in the jobs' order; (job, None, the error) for one whose overrides
+    do not compose (its run reports the error)."""
     from hydra import compose, initialize_config_dir
 
     from drapebench.cache import PROJECT_ROOT
@@ -50,8 +51,12 @@ def _composed(jobs: list):
         for job in jobs:
             key = (job.sweep.experiment, tuple(o for o in job.overrides if not o.lstrip("+").startswith(UNKEYED)))
             if key not in configs:
-                configs[key] = compose("config", overrides=[f"experiment={key[0]}", *key[1]])
-            yield job, configs[key]
+                try:
+                    configs[key] = compose("config", overrides=[f"experiment={key[0]}", *key[1]])
+                except Exception as e:  # noqa: BLE001 - any composition error: that run's own to report
+                    configs[key] = e
+            cfg = configs[key]
+            yield (job, None, cfg) if isinstance(cfg, Exception) else (job, cfg, None)
 
 
 def groups(jobs: list) -> list:
@@ -63,39 +68,65 @@ def groups(jobs: list) -> list:
     return grouped(jobs)[0]
 
 
-def grouped(jobs: list) -> tuple[list, set]:
-    """:func:`groups` of ``jobs`` and the set of the jobs (their folders) that train a model: the first run of each
-    training not in the checkpoint cache (the others of its group load it), for an estimate of the time left."""
+def grouped(jobs: list) -> tuple[list, set, dict]:
+    """:func:`groups` of ``jobs``, the set of the jobs (their folders) that train a model: the first run of each
+    training not in the checkpoint cache (the others of its group load it), for an estimate of the time left, and
+    {folder: error} of the jobs that could not be planned (their overrides do not compose, their method refuses its
+    parameters, their scene cannot be built): each is a group of its own, and its run reports the error."""
+    out, methods, scenes, trains, seen, unplanned = {}, {}, {}, set(), set(), {}
+    for k, (job, cfg, error) in enumerate(_composed(jobs)):
+        try:
+            identity = None if cfg is None else _group_identity(cfg, methods, scenes)
+        except Exception as e:  # noqa: BLE001 - a refused parameter or a bad scene: that run's own to report
+            identity, error = None, e
+        if error is not None:
+            unplanned[job.dir] = _said(error)
+        if identity is not None and identity[1] not in seen:
+            seen.add(identity[1])
+            trains.add(job.dir)
+        out.setdefault(("run", k) if identity is None else identity[0], []).append(job)
+    return list(out.values()), trains, unplanned
+
+
+def _group_identity(cfg, methods: dict, scenes: dict) -> tuple | None:
+    """(the group key, the training's identity) of the composed run config ``cfg`` (:func:`groups`), None when it
+    trains nothing or only loads a cached model."""
     from omegaconf import OmegaConf
 
     from drapebench.experiment import method_class
 
-    out, methods, scenes, trains, seen = {}, {}, {}, set(), set()
-    for k, (job, cfg) in enumerate(_composed(jobs)):
-        identity = training_identity(cfg, methods)
-        if identity is not None and _sealed(cfg, scenes):
-            identity = None
-        if identity is not None and identity not in seen:
-            seen.add(identity)
-            trains.add(job.dir)
-        if identity is not None and method_class(cfg).needs_reference:
-            identity = ("reference set", repr(OmegaConf.to_container(cfg.data, resolve=True)), repr(OmegaConf.to_container(cfg.garment, resolve=True)),
-                        cfg.body.name)  # fmt: skip
-        out.setdefault(("run", k) if identity is None else identity, []).append(job)
-    return list(out.values()), trains
+    identity = training_identity(cfg, methods)
+    if identity is None or _sealed(cfg, scenes):
+        return None
+    if method_class(cfg).needs_reference:
+        return ("reference set", repr(OmegaConf.to_container(cfg.data, resolve=True)), repr(OmegaConf.to_container(cfg.garment, resolve=True)),
+                cfg.body.name), identity  # fmt: skip
+    return identity, identity
 
 
-def tally(jobs: list) -> dict:
+def tally(jobs: list) -> tuple[dict, dict]:
     """Per method name (in the order the runs first name it): ``{"runs": n, "trainings": {identity: a composed run
-    config that needs it}}`` over ``jobs`` (:class:`drapebench.reproduce.Job`), each composed as its run composes it."""
-    out, methods = defaultdict(lambda: {"runs": 0, "trainings": {}}), {}
-    for _, cfg in _composed(jobs):
+    config that needs it}}`` over ``jobs`` (:class:`drapebench.reproduce.Job`), each composed as its run composes it;
+    and {job: error} of those that could not be planned (:func:`grouped`)."""
+    out, methods, unplanned = defaultdict(lambda: {"runs": 0, "trainings": {}}), {}, {}
+    for job, cfg, error in _composed(jobs):
+        try:
+            identity = None if cfg is None else training_identity(cfg, methods)
+        except Exception as e:  # noqa: BLE001 - a refused parameter: that run's own to report
+            error = e
+        if error is not None:
+            unplanned[job] = _said(error)
+            continue
         row = out[cfg.method.name]
         row["runs"] += 1
-        identity = training_identity(cfg, methods)
         if identity is not None:
             row["trainings"].setdefault(identity, cfg)
-    return dict(out)
+    return dict(out), unplanned
+
+
+def _said(error: Exception) -> str:
+    """An error in one line: its type and its message's first line."""
+    return f"{type(error).__name__}: {(str(error).splitlines() or [''])[0]}"
 
 
 def _sealed(cfg, scenes: dict) -> bool:
@@ -153,9 +184,15 @@ def reference_sets(configs, scenes: dict) -> list:
 
 def cached(configs, scenes: dict | None = None) -> list:
     """Per composed run config of ``configs``, whether the training it needs has a sealed checkpoint in the cache
-    (:func:`_sealed`); ``scenes`` as there."""
+    (:func:`_sealed`; False where its scene cannot be built: its run reports why); ``scenes`` as there."""
     scenes = {} if scenes is None else scenes
-    return [_sealed(cfg, scenes) for cfg in configs]
+    out = []
+    for cfg in configs:
+        try:
+            out.append(_sealed(cfg, scenes))
+        except Exception:  # noqa: BLE001 - that run's own to report
+            out.append(False)
+    return out
 
 
 def summary(jobs: list) -> list:
@@ -164,7 +201,7 @@ def summary(jobs: list) -> list:
     drapes build first (:func:`reference_sets`)."""
     from drapebench.experiment import method_class
 
-    counts, scenes = tally(jobs), {}
+    (counts, unplanned), scenes = tally(jobs), {}
     sealed = {name: cached(row["trainings"].values(), scenes) for name, row in counts.items()}
     lines = [f"{'method':<24}{'runs':>6}{'trainings':>11}{'cached':>8}"]
     lines += [f"{name:<24}{row['runs']:>6}{len(row['trainings']):>11}{sum(sealed[name]):>8}" for name, row in counts.items()]
@@ -172,4 +209,5 @@ def summary(jobs: list) -> list:
                  f"{sum(map(sum, sealed.values())):>8}")
     to_build = [cfg for name, row in counts.items() for cfg, done in zip(row["trainings"].values(), sealed[name])
                 if not done and method_class(cfg).needs_reference]  # fmt: skip
+    lines += [f"could not plan {job.sweep.experiment} {' '.join(job.overrides)} ({why}): its run will say why" for job, why in unplanned.items()]
     return lines + reference_sets(to_build, scenes)

@@ -150,11 +150,11 @@ def _jobs(sweep: Sweep) -> list:
 def test_the_cost_tally_counts_a_training_per_model_not_per_run():
     """gaps_table3: 2 methods x 3 shapes x 3 seeds = 18 runs on one garment need 6 trainings (the shape is a test
     input); the untrained rows need none; GenSim, one model for every garment, one per seed over 3 garments."""
-    counts = tally(_jobs(Sweep("gaps_table3", ("seed=0,1,2",))))
+    counts = tally(_jobs(Sweep("gaps_table3", ("seed=0,1,2",))))[0]
     assert {m: (r["runs"], len(r["trainings"])) for m, r in counts.items()} == {"gaps": (9, 3), "gaps_no_inext": (9, 3)}
     (before,) = untrained("gaps_table3", ("gaps",))
-    assert {m: len(r["trainings"]) for m, r in tally(_jobs(before)).items()} == {"gaps_untrained": 0}
-    pen = tally(_jobs(Sweep("gensim_pen", ("seed=0,1",))))
+    assert {m: len(r["trainings"]) for m, r in tally(_jobs(before))[0].items()} == {"gaps_untrained": 0}
+    pen = tally(_jobs(Sweep("gensim_pen", ("seed=0,1",))))[0]
     assert (pen["gensim"]["runs"], len(pen["gensim"]["trainings"])) == (6, 2)
     assert (pen["gensim_arap"]["runs"], len(pen["gensim_arap"]["trainings"])) == (6, 0)  # the ARAP stage learns nothing
     lines = summary(_jobs(Sweep("gaps_table3", ("seed=0,1,2",))))
@@ -196,7 +196,7 @@ def test_the_cost_counts_a_cached_checkpoint_where_the_run_would_load_it():
     from drapebench.reproduce_cost import cached
     from drapebench.scene import Scene
 
-    counts = tally(_jobs(Sweep("gaps_table3", ("method=gaps", "seed=0,1"))))
+    counts = tally(_jobs(Sweep("gaps_table3", ("method=gaps", "seed=0,1"))))[0]
     configs = list(counts["gaps"]["trainings"].values())
     assert len(configs) == 2 and cached(configs) == [False, False]
     cfg = next(c for c in configs if c.seed == 1)
@@ -228,6 +228,25 @@ def test_runs_that_share_a_model_or_a_reference_set_are_grouped_to_run_in_turn(m
     assert [len(g) for g in groups(vae)] == [1, 1, 1, 1] and [len(g) for g in groups(jobs)] == [1] * 12
 
 
+def test_a_run_that_cannot_be_planned_is_its_own_group_and_the_rest_still_plan(monkeypatch):
+    """One run whose overrides do not compose, and one whose method refuses its parameters: each is a group of its own,
+    named with its error (the run then reports it), and neither stops the plan or the dry run of the others."""
+    import dataclasses
+
+    import drapebench.reproduce_cost as cost
+
+    monkeypatch.setattr(cost, "_sealed", lambda cfg, scenes: False)
+    jobs = _jobs(Sweep("gaps_table3", ("method=gaps", "seed=0")))
+    bad_key = dataclasses.replace(jobs[0], overrides=(*jobs[0].overrides, "method.params.no_such_key=1"), dir=jobs[0].dir.with_name("bad_key"))
+    bad_value = dataclasses.replace(jobs[0], overrides=(*jobs[0].overrides, "method.params.rbf_k=0"), dir=jobs[0].dir.with_name("bad_value"))
+    found, trains, unplanned = cost.grouped([bad_key, *jobs, bad_value])
+    assert [len(g) for g in found] == [1, len(jobs), 1] and set(unplanned) == {bad_key.dir, bad_value.dir}
+    assert "no_such_key" in unplanned[bad_key.dir] and "rbf_k" in unplanned[bad_value.dir]
+    assert trains == {jobs[0].dir}
+    lines = summary([bad_key, *jobs, bad_value])
+    assert sum(x.startswith("could not plan") for x in lines) == 2 and "all" in [x.split()[0] for x in lines]
+
+
 def test_run_all_with_two_workers_runs_each_group_in_turn_on_one_worker(tmp_path, monkeypatch):
     """Two workers, each pinned to its own cores: a group's runs go in order on one worker, the groups spread over
     both, a run that ends without a result is returned as failed."""
@@ -239,7 +258,7 @@ def test_run_all_with_two_workers_runs_each_group_in_turn_on_one_worker(tmp_path
     from drapebench.reproduce import run_all, worker_cpus
 
     jobs = [Job("t", Sweep("x"), (f"k={i}",), tmp_path / str(i)) for i in range(6)]
-    monkeypatch.setattr(cost, "grouped", lambda todo: ([todo[0:3], todo[3:5], todo[5:]], {todo[0].dir}))
+    monkeypatch.setattr(cost, "grouped", lambda todo: ([todo[0:3], todo[3:5], todo[5:]], {todo[0].dir}, {}))
     ran = []
 
     def runner(job, at, cpus):
