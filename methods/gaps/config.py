@@ -19,9 +19,9 @@ from methods.params import at_least, params_dict, positive, schedule
 class GapsTrain:
     """The training keys only GAPS reads (``method.params.train``)."""
 
-    window: int = 3  # consecutive frames per training item
+    window: int = 3  # consecutive frames per training item (at least 3: inertia reads the two frames before the last)
     lr_output_factor: float = 1.0  # the output layer's learning rate relative to train.lr
-    kext_ramp_epochs: int = 100  # epochs over which k_ext rises to its cap (GAPS Eq. 16)
+    kext_ramp_epochs: int = 100  # epochs over which k_ext rises to its cap (GAPS Eq. 16; at least 1: 1 reaches it after the first)
     hidden_init_std: float = 0.1  # GRU state drawn from N(0, std^2) in training
     beta_range: tuple[float, ...] = (2.0, 2.0, 2.0, 2.0)  # beta_k ~ U(-r_k, r_k) on the first len(beta_range) components (the code)
     output_adam_eps: float = 1e-8  # Adam's eps for the output layer (torch's default; the code's Keras default is 1e-7)
@@ -31,7 +31,7 @@ class GapsTrain:
     schedule: dict = schedule()  # overrides of the budget (conf/train) for GAPS alone, e.g. {lr: 1.0e-3, grad_clip: 50}
 
     def __post_init__(self) -> None:
-        at_least("gaps", "train.", self, window=1, kext_ramp_epochs=0, hidden_init_std=0, output_smoothing=0, lr_output_factor=0)
+        at_least("gaps", "train.", self, window=3, kext_ramp_epochs=1, hidden_init_std=0, output_smoothing=0, lr_output_factor=0)
         positive("gaps", "train.", self, "output_adam_eps")
         if any(not is_number(r) or r < 0 for r in self.beta_range):
             raise ValueError(f"gaps parameter method.params.train.beta_range holds the half-widths (>= 0) of the shapes training draws, got {list(self.beta_range)}")

@@ -85,7 +85,8 @@ def test_a_mapping_entry_takes_the_type_of_its_default_and_steps_may_be_none():
     ({"collision_eps": -0.001}, r"method.params.collision_eps must be >= 0"),
     ({"relax_inextensibility_weight": -1.0}, r"method.params.relax_inextensibility_weight must be >= 0"),
     ({"relax_grid": []}, r"method.params.relax_grid lists the shape-offset values"),
-    ({"train": {"window": 0}}, r"method.params.train.window must be >= 1, got 0"),
+    ({"train": {"window": 2}}, r"method.params.train.window must be >= 3, got 2"),  # inertia reads two frames before the last
+    ({"train": {"kext_ramp_epochs": 0}}, r"method.params.train.kext_ramp_epochs must be >= 1, got 0"),  # the ramp divides by it
     ({"train": {"output_adam_eps": 0.0}}, r"method.params.train.output_adam_eps must be > 0"),
     ({"train": {"beta_range": [2.0, -1.0]}}, r"method.params.train.beta_range holds the half-widths \(>= 0\)"),
 ])
