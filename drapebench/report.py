@@ -24,6 +24,7 @@ import yaml
 from drapebench.cache import PROJECT_ROOT, atomic_write
 from drapebench.plugins import declared, known_impl
 from drapebench.results import SUMMARY_COLUMNS, legend, metric_catalogue, metric_decimals, metric_info, metric_label
+from drapebench.run_archive import converged_of
 from drapebench.table_file import write_csv
 from drapebench.table_specs import spec, specs
 from drapebench.train.convergence import converged_seconds
@@ -91,7 +92,8 @@ def collect(dirs) -> pd.DataFrame:
     """One row per ``metrics.json`` found below ``dirs`` (a run dir or a sweep dir, jobs in job order; a method its
     ``config.yaml`` names by import path joins the registry, :func:`drapebench.plugins.known_impl`), with its
     ``run_dir`` and, for a run that trained (a ``losses.csv`` beside it), ``converged_s``
-    (:func:`drapebench.train.convergence.converged_seconds`)."""
+    (:func:`drapebench.train.convergence.converged_seconds`; a run restored from an archive without its
+    ``losses.csv``: the value recorded, :func:`drapebench.run_archive.converged_of`)."""
     rows = []
     for d in dirs:
         d = Path(d)
@@ -102,8 +104,8 @@ def collect(dirs) -> pd.DataFrame:
             if env.exists():  # the torch threads the run drew with: a drape time depends on them
                 rec["torch_threads"] = json.loads(env.read_text()).get("torch_threads")
             join_registry(f.parent)
-            losses = f.parent / "losses.csv"
-            converged = converged_seconds(losses, rec["train_s"]) if rec.get("train_s") and losses.exists() else None
+            losses = f.parent / "losses.csv"  # without it (a run restored from an archive): its record of the time
+            converged = converged_seconds(losses, rec["train_s"]) if rec.get("train_s") and losses.exists() else converged_of(f.parent)
             if converged is not None:
                 rec["converged_s"] = converged
             rows.append(rec)

@@ -292,6 +292,9 @@ def main(argv=None) -> int:
     parser.add_argument("--runs", type=Path, help="where the runs go (default: outputs/reproduce, or outputs/reproduce_quick/runs)")
     parser.add_argument("--jobs", type=int, default=1, help="runs at once, each pinned to its share of the CPU cores; the runs that share a "
                         "model or a reference set run on one worker in turn (default 1)")
+    parser.add_argument("--archive", type=Path, help="keep every finished run's record (a few kB: its metrics, config and stamp) in this folder, "
+                        "and restore from it the runs the runs folder lacks, first; committed, it carries a regeneration over to "
+                        "another machine (drapebench/run_archive.py)")
     parser.add_argument("--dry-run", action="store_true", help="list the runs and whether each has finished, and per method the trainings the unfinished ones need and how many are cached; run nothing")
     args = parser.parse_args(argv)
     if not args.tables:
@@ -308,6 +311,11 @@ def main(argv=None) -> int:
         parser.error("--quick --out reports: quick tables are untrained 8-frame checks of the pipeline, not results, and would "
                      "replace the committed tables and claims.md; leave --out out or name another folder")
     names = [n for n in tables if n in args.tables or _needed_by(n, args.tables)]
+    if args.archive:
+        from drapebench.run_archive import sync
+
+        recorded, restored = sync(root, args.archive)
+        print(f"archive {args.archive}: {restored} runs restored from it, {recorded} recorded into it")
     jobs = plan(names, root, args.quick)
     at = commit()
     if args.dry_run:
@@ -321,7 +329,7 @@ def main(argv=None) -> int:
               "the trainings of methods trained on reference drapes simulate first:")
         print("\n".join(summary(todo)))
         return 0
-    failed = run_all(jobs, at, workers=args.jobs)
+    failed = run_all(jobs, at, workers=args.jobs, runner=_archiving(args.archive, root) if args.archive else run_job)
     paths = write_tables([n for n in names if n in args.tables], root, out, args.quick)
     from drapebench.claims import write_claims
 
@@ -332,6 +340,19 @@ def main(argv=None) -> int:
     if failed:
         print(f"{len(failed)} runs stopped without a result (their logs are named above); rerun the command to retry them")
     return 1 if failed else 0
+
+
+def _archiving(archive: Path, root: Path):
+    """:func:`run_job` that then records the run into ``archive`` when it finished (:func:`drapebench.run_archive.record`)."""
+    from drapebench.run_archive import record
+
+    def runner(job: Job, at: str, cpus: set | None = None) -> int:
+        code = run_job(job, at, cpus)
+        if finished(job, at):
+            record(job.dir, archive / job.dir.relative_to(root))
+        return code
+
+    return runner
 
 
 def _needed_by(name: str, tables: list) -> bool:

@@ -1,0 +1,101 @@
+"""A regeneration's finished runs as small records, so that it can go on on another machine.
+
+``python -m drapebench.reproduce --archive DIR`` keeps, for every finished run, the files its tables read (its
+:data:`RECORD`: metrics, environment, config, the reproduce stamp, a recorded failure, per-epoch evaluations) and,
+for a run that trained, ``converged.json`` (the training time to convergence, read off ``losses.csv``, which is
+left out: about 0.6 MB a model). A few kB a run: committed, the archive outlives the machine, while the
+checkpoint cache and the runs' folders do not. At the start of a regeneration the runs folder gets back every
+archived run it lacks, and the archive every finished run it lacks; a run restored at its commit counts as finished
+(:func:`drapebench.reproduce.finished`), so a sitting on a new machine, at the same commit, trains only what is left.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+from drapebench.cache import atomic_write
+
+RECORD = ("metrics.json", "failed.json", "env.json", "config.yaml", "reproduce.json", "evaluations.csv")
+STAMP = "reproduce.json"
+CONVERGED = "converged.json"
+
+
+def _finished(root: Path) -> dict:
+    """{path relative to ``root``: run folder} of the finished runs below ``root`` (a stamp, and metrics or a failure)."""
+    if not root.exists():
+        return {}
+    return {d.relative_to(root): d for d in (s.parent for s in root.rglob(STAMP))
+            if (d / "metrics.json").exists() or (d / "failed.json").exists()}  # fmt: skip
+
+
+def _copy(src: Path, dest: Path, names) -> None:
+    """Copy the files ``names`` that ``src`` holds into ``dest`` as a whole: into a temporary folder first, then
+    renamed over ``dest`` (a folder is never left half-copied)."""
+    tmp = dest.with_name(dest.name + ".tmp")
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir(parents=True)
+    for name in names:
+        if (src / name).exists():
+            shutil.copy2(src / name, tmp / name)
+    shutil.rmtree(dest, ignore_errors=True)
+    tmp.rename(dest)
+
+
+def record(run: Path, dest: Path) -> None:
+    """The archive record of the finished run folder ``run`` into ``dest``: its :data:`RECORD` files and, when it
+    trained (a ``losses.csv`` and a ``train_s``), ``converged.json`` with its ``converged_s``."""
+    from drapebench.train.convergence import converged_seconds
+
+    _copy(run, dest, RECORD)
+    metrics = run / "metrics.json"
+    losses = run / "losses.csv"
+    if metrics.exists() and losses.exists():
+        train_s = json.loads(metrics.read_text()).get("train_s")
+        converged = converged_seconds(losses, train_s) if train_s else None
+        if converged is not None:
+            with atomic_write(dest / CONVERGED, "w") as f:
+                json.dump({"converged_s": converged}, f)
+
+
+def sync(root: Path, archive: Path) -> tuple[int, int]:
+    """Bring the runs folder ``root`` and the archive ``archive`` level: every finished run of ``root`` whose stamp
+    the archive lacks or holds otherwise is recorded (:func:`record`), every archived run whose stamp ``root`` lacks
+    is restored there (its record's files; no ``losses.csv``). Returns (recorded, restored)."""
+    root, archive = Path(root), Path(archive)
+    runs, kept = _finished(root), _finished(archive)
+    recorded = restored = 0
+    for rel, run in runs.items():
+        if rel not in kept or (kept[rel] / STAMP).read_bytes() != (run / STAMP).read_bytes():
+            record(run, archive / rel)
+            recorded += 1
+    for rel, saved in kept.items():
+        if rel not in runs and not (root / rel / STAMP).exists():
+            (root / rel).parent.mkdir(parents=True, exist_ok=True)
+            _copy(saved, root / rel, (*RECORD, CONVERGED))
+            restored += 1
+    return recorded, restored
+
+
+def converged_of(run: Path) -> float | None:
+    """A restored run's training time to convergence (s) from its ``converged.json``, None without one."""
+    path = Path(run) / CONVERGED
+    return json.loads(path.read_text()).get("converged_s") if path.exists() else None
+
+
+def main(argv=None) -> int:
+    import argparse
+
+    parser = argparse.ArgumentParser(description="Bring a regeneration's runs folder and its archive level (sync), as "
+                                     "`python -m drapebench.reproduce --archive` does first; for a worktree whose reproduce predates --archive.")  # fmt: skip
+    parser.add_argument("runs", type=Path, help="the runs folder (a worktree's outputs/reproduce)")
+    parser.add_argument("archive", type=Path, help="the archive (e.g. the main checkout's reports/runs)")
+    args = parser.parse_args(argv)
+    recorded, restored = sync(args.runs, args.archive)
+    print(f"archive {args.archive}: {restored} runs restored into {args.runs}, {recorded} recorded from it")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
