@@ -183,16 +183,20 @@ def worker_cpus(workers: int) -> list:
 def time_left(took: dict, waiting: list, trains: set, workers: int) -> str:
     """", about H:MM:SS left (n trainings, m other runs)" for the jobs ``waiting``: per kind (a run that trains a model,
     its folder in ``trains``, or one that does not) the mean wall time of the runs of that kind finished
-    (``took``: {folder: (seconds, trained)}; a kind none of whose runs has finished takes the other's), over
-    ``workers``; "" before any run has finished."""
+    (``took``: {folder: (seconds, trained)}), over ``workers``; a kind none of whose runs has finished yet is left out
+    of the time and named as not timed yet (taking the other kind's mean said 26 h for a 12 h regeneration, its other
+    runs priced as trainings); "" before any run has finished."""
     if not took:
         return ""
-    mean = {kind: [s for s, t in took.values() if t == kind] for kind in (True, False)}
-    every = [s for s, _ in took.values()]
-    per = {kind: sum(v) / len(v) if v else sum(every) / len(every) for kind, v in mean.items()}
     n_train = sum(j.dir in trains for j in waiting)
-    seconds = (n_train * per[True] + (len(waiting) - n_train) * per[False]) / max(workers, 1)
-    return f", about {_clock(seconds)} left ({n_train} trainings, {len(waiting) - n_train} other runs)"
+    counts = {True: n_train, False: len(waiting) - n_train}
+    names = {True: "trainings", False: "other runs"}
+    mean = {kind: [s for s, t in took.values() if t == kind] for kind in (True, False)}
+    timed = [k for k in (True, False) if mean[k]]
+    seconds = sum(counts[k] * sum(mean[k]) / len(mean[k]) for k in timed) / max(workers, 1)
+    untimed = [f"{counts[k]} {names[k]} not timed yet" for k in (True, False) if not mean[k] and counts[k]]
+    parts = ", ".join(f"{counts[k]} {names[k]}" for k in timed)
+    return f", about {_clock(seconds)} left ({parts}{'; ' + ', '.join(untimed) if untimed else ''})"
 
 
 def run_all(jobs: list, at: str, say=print, workers: int = 1, runner=run_job) -> list:

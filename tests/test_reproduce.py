@@ -295,8 +295,8 @@ def test_the_time_left_counts_the_trainings_left_at_a_trainings_time_and_the_oth
     jobs = [Job("t", Sweep("x"), (f"k={i}",), tmp_path / str(i)) for i in range(10)]
     trains = {jobs[0].dir, jobs[1].dir, jobs[5].dir}
     assert time_left({}, jobs, trains, 1) == ""  # nothing finished: no estimate
-    took = {jobs[0].dir: (600.0, True)}  # one training of 10 minutes so far: the other runs are assumed as long
-    assert time_left(took, jobs[2:], trains, 2) == ", about 0:40:00 left (1 trainings, 7 other runs)"
+    took = {jobs[0].dir: (600.0, True)}  # one training of 10 minutes so far: the other runs are not priced as trainings
+    assert time_left(took, jobs[2:], trains, 2) == ", about 0:05:00 left (1 trainings; 7 other runs not timed yet)"
     took[jobs[2].dir] = (6.0, False)
     assert time_left(took, jobs[3:], trains, 1) == ", about 0:10:36 left (1 trainings, 6 other runs)"
 
