@@ -23,7 +23,7 @@ TOLERANCE_M = 1e-5  # float32 noise on a drape of about 1 m
 # to (mean, max) tolerances about 4x that noise: the VAE's drape departs from lbs's by 4.0e-4 m on average. The VAE's
 # noise comes from its projection's 3 Adam steps a frame (without them it moves 3e-8 m, but then its drape is lbs's);
 # so it guards against changes above it only (in this scene even a doubled Laplacian or no collision term in its
-# loss moves it less, 1.6e-6 / 2.6e-6 m at most), and pbs's against a change of its solver (iterations or
+# loss moves it less, 1.6e-6 / 2.6e-6 m at most, measured without the projection steps), and pbs's against a change of its solver (iterations or
 # substeps: 9e-3 / 1.5e-2 m on average).
 NOISY_M = {"pbs": (1e-6, 5e-4), "vae": (1.5e-4, 2e-3)}
 
