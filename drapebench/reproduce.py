@@ -217,7 +217,8 @@ def run_all(jobs: list, at: str, say=print, workers: int = 1, runner=run_job) ->
     group_list, trains, unplanned = grouped(todo) if todo else ([], set(), {})
     for job in todo:
         if job.dir in unplanned:
-            say(f"could not plan {job.table}: {job.sweep.experiment} {' '.join(job.overrides)} ({unplanned[job.dir]}); it runs on its own and its log will say why")
+            say(f"could not plan {job.table}: {job.sweep.experiment} {' '.join(job.overrides)} ({unplanned[job.dir]}); "
+                "it runs on its own and its log will say why")
     failed, lock, counter, took, waiting = [], threading.Lock(), iter(range(1, len(todo) + 1)), {}, list(todo)
 
     def one(job: Job, cpus) -> None:

@@ -87,8 +87,8 @@ def converged_of(run: Path) -> float | None:
 def main(argv=None) -> int:
     import argparse
 
-    parser = argparse.ArgumentParser(description="Bring a regeneration's runs folder and its archive level (sync), as "
-                                     "`python -m drapebench.reproduce --archive` does first; for a worktree whose reproduce predates --archive.")  # fmt: skip
+    parser = argparse.ArgumentParser(description="Bring a regeneration's runs folder and its archive level (sync), as `python -m "
+                                     "drapebench.reproduce --archive` does first; for a worktree whose reproduce predates --archive.")
     parser.add_argument("runs", type=Path, help="the runs folder (a worktree's outputs/reproduce)")
     parser.add_argument("archive", type=Path, help="the archive (e.g. the main checkout's reports/runs)")
     args = parser.parse_args(argv)
