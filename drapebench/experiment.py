@@ -195,6 +195,7 @@ def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir
     trained by other ``methods/<impl>`` code than this checkout's (its stored fingerprint, uncommitted edits
     included: :func:`drapebench.staleness.trained_by_changed_code`) is trained again, as a table would call its rows
     stale."""
+    code = code_of(cfg.method.impl)  # the code on disk before anything is read or trained (kept for the process: fingerprint's cache)
     path = checkpoint_path(method, cfg, garment, data.body, train_cfg)
     state = CHECKPOINTS.load(path, partial(torch.load, map_location="cpu", weights_only=False), force=bool(cfg.force))
     if state is not None and (why := trained_by_changed_code(cfg.method.impl, state)):
@@ -215,7 +216,6 @@ def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir
         return Trained(state["train_s"], str(path), stopped, state.get("commit", "unrecorded"), state.get("n_steps"), method.trained_body(data.body).name)
     if method.needs_reference:  # its reference drapes are simulated (or read) before the fit's clock starts: data, not training
         data.read_train()
-    code = code_of(cfg.method.impl)  # the code that trains it, read before the fit
     report = method.fit(data, train_cfg if log_dir is None else {**train_cfg, "log_dir": str(log_dir)})
     _write_fit_logs(log_dir, report.history, report.evaluations)
     state = method.state_dict()
@@ -272,7 +272,7 @@ def _evaluate(cfg: DictConfig, garment, seq, body, prediction, reference, materi
 
 
 RUN_FILES = ("metrics.json", "failed.json", "frames.csv", "prediction.h5", "drape.rrd", "losses.csv", "evaluations.csv",
-             "losses.png", "export", "env.json", "settings.json", "config.yaml")  # what a run writes into its folder (losses.png: the report's; export/: a folder)
+             "losses.png", "export", "env.json", "settings.json", "config.yaml", "converged.json")  # what a run writes into its folder (losses.png: the report's; export/: a folder; converged.json: a restored run's, drapebench.run_archive)
 
 
 class RunFolderInUse(ValueError):

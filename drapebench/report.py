@@ -105,7 +105,7 @@ def collect(dirs) -> pd.DataFrame:
                 rec["torch_threads"] = json.loads(env.read_text()).get("torch_threads")
             join_registry(f.parent)
             losses = f.parent / "losses.csv"  # without it (a run restored from an archive): its record of the time
-            converged = converged_seconds(losses, rec["train_s"]) if rec.get("train_s") and losses.exists() else converged_of(f.parent)
+            converged = (converged_seconds(losses, rec["train_s"]) if losses.exists() else converged_of(f.parent)) if rec.get("train_s") else None
             if converged is not None:
                 rec["converged_s"] = converged
             rows.append(rec)

@@ -316,13 +316,15 @@ def main(argv=None) -> int:
         parser.error("--quick --out reports: quick tables are untrained 8-frame checks of the pipeline, not results, and would "
                      "replace the committed tables and claims.md; leave --out out or name another folder")
     names = [n for n in tables if n in args.tables or _needed_by(n, args.tables)]
-    if args.archive:
+    at = commit()
+    if args.archive and args.dry_run:
+        print(f"archive {args.archive}: not synced by a dry run (the runs it would restore are listed as todo)")
+    elif args.archive:
         from drapebench.run_archive import sync
 
-        recorded, restored = sync(root, args.archive)
+        recorded, restored = sync(root, args.archive, at)
         print(f"archive {args.archive}: {restored} runs restored from it, {recorded} recorded into it")
     jobs = plan(names, root, args.quick)
-    at = commit()
     if args.dry_run:
         from drapebench.reproduce_cost import summary
 

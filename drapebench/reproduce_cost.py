@@ -172,7 +172,11 @@ def reference_sets(configs, scenes: dict) -> list:
         if key in seen:
             continue
         seen.add(key)
-        scene = _scene(cfg, scenes)
+        try:
+            scene = _scene(cfg, scenes)
+        except Exception as e:  # noqa: BLE001 - its runs report it
+            lines.append(f"reference set data={cfg.data.name} on garment {cfg.garment.name}: its scene cannot be built ({_said(e)}): its runs will say why")
+            continue
         spec = ReferenceSetSpec.from_config(OmegaConf.to_container(cfg.data, resolve=True))
         found, missing = collect_reference_set(scene.garment, scene.body, scene.material, spec)
         settle = SimSettings.for_solver(spec.solver, **spec.settings).settle_frames  # simulated before each sequence
@@ -182,16 +186,19 @@ def reference_sets(configs, scenes: dict) -> list:
     return lines
 
 
-def cached(configs, scenes: dict | None = None) -> list:
+def cached(configs, scenes: dict | None = None, errors: list | None = None) -> list:
     """Per composed run config of ``configs``, whether the training it needs has a sealed checkpoint in the cache
-    (:func:`_sealed`; False where its scene cannot be built: its run reports why); ``scenes`` as there."""
+    (:func:`_sealed`; False where its scene cannot be built, its error appended to ``errors``: its run reports
+    it); ``scenes`` as there."""
     scenes = {} if scenes is None else scenes
     out = []
     for cfg in configs:
         try:
             out.append(_sealed(cfg, scenes))
-        except Exception:  # noqa: BLE001 - that run's own to report
+        except Exception as e:  # noqa: BLE001 - that run's own to report
             out.append(False)
+            if errors is not None:
+                errors.append(f"{cfg.method.name} on garment {cfg.garment.name} ({_said(e)})")
     return out
 
 
@@ -201,8 +208,8 @@ def summary(jobs: list) -> list:
     drapes build first (:func:`reference_sets`)."""
     from drapebench.experiment import method_class
 
-    (counts, unplanned), scenes = tally(jobs), {}
-    sealed = {name: cached(row["trainings"].values(), scenes) for name, row in counts.items()}
+    (counts, unplanned), scenes, unbuilt = tally(jobs), {}, []
+    sealed = {name: cached(row["trainings"].values(), scenes, unbuilt) for name, row in counts.items()}
     lines = [f"{'method':<24}{'runs':>6}{'trainings':>11}{'cached':>8}"]
     lines += [f"{name:<24}{row['runs']:>6}{len(row['trainings']):>11}{sum(sealed[name]):>8}" for name, row in counts.items()]
     lines.append(f"{'all':<24}{sum(r['runs'] for r in counts.values()):>6}{sum(len(r['trainings']) for r in counts.values()):>11}"
@@ -210,4 +217,5 @@ def summary(jobs: list) -> list:
     to_build = [cfg for name, row in counts.items() for cfg, done in zip(row["trainings"].values(), sealed[name])
                 if not done and method_class(cfg).needs_reference]  # fmt: skip
     lines += [f"could not plan {job.sweep.experiment} {' '.join(job.overrides)} ({why}): its run will say why" for job, why in unplanned.items()]
+    lines += [f"could not build the scene of the training of {what}: its runs will say why" for what in unbuilt]
     return lines + reference_sets(to_build, scenes)

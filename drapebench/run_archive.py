@@ -7,6 +7,7 @@ left out: about 0.6 MB a model). A few kB a run: committed, the archive outlives
 checkpoint cache and the runs' folders do not. At the start of a regeneration the runs folder gets back every
 archived run it lacks, and the archive every finished run it lacks; a run restored at its commit counts as finished
 (:func:`drapebench.reproduce.finished`), so a sitting on a new machine, at the same commit, trains only what is left.
+A sync never runs beside a regeneration in the same runs folder (``reproduce --archive`` syncs before it starts).
 """
 
 from __future__ import annotations
@@ -23,57 +24,71 @@ CONVERGED = "converged.json"
 
 
 def _finished(root: Path) -> dict:
-    """{path relative to ``root``: run folder} of the finished runs below ``root`` (a stamp, and metrics or a failure)."""
+    """{path relative to ``root``: run folder} of the finished runs below ``root`` (a stamp, and metrics or a
+    failure; a half-written ``*.tmp`` copy is none)."""
     if not root.exists():
         return {}
     return {d.relative_to(root): d for d in (s.parent for s in root.rglob(STAMP))
-            if (d / "metrics.json").exists() or (d / "failed.json").exists()}  # fmt: skip
+            if not d.name.endswith(".tmp") and ((d / "metrics.json").exists() or (d / "failed.json").exists())}  # fmt: skip
 
 
-def _copy(src: Path, dest: Path, names) -> None:
-    """Copy the files ``names`` that ``src`` holds into ``dest`` as a whole: into a temporary folder first, then
-    renamed over ``dest`` (a folder is never left half-copied)."""
+def _commit(run: Path) -> str | None:
+    return json.loads((run / STAMP).read_text()).get("commit")
+
+
+def _copy(src: Path, dest: Path, names, converged: float | None = None) -> None:
+    """Copy the files ``names`` that ``src`` holds (and ``converged.json`` with ``converged``, if given) into
+    ``dest`` as a whole: into a temporary folder first, then renamed over ``dest`` (never left half-copied)."""
     tmp = dest.with_name(dest.name + ".tmp")
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir(parents=True)
     for name in names:
         if (src / name).exists():
             shutil.copy2(src / name, tmp / name)
+    if converged is not None:
+        (tmp / CONVERGED).write_text(json.dumps({"converged_s": converged}))
     shutil.rmtree(dest, ignore_errors=True)
     tmp.rename(dest)
 
 
 def record(run: Path, dest: Path) -> None:
     """The archive record of the finished run folder ``run`` into ``dest``: its :data:`RECORD` files and, when it
-    trained (a ``losses.csv`` and a ``train_s``), ``converged.json`` with its ``converged_s``."""
+    trained, ``converged.json`` with its ``converged_s`` (from its ``losses.csv``, or the record it was restored
+    from)."""
     from drapebench.train.convergence import converged_seconds
 
-    _copy(run, dest, RECORD)
-    metrics = run / "metrics.json"
-    losses = run / "losses.csv"
-    if metrics.exists() and losses.exists():
-        train_s = json.loads(metrics.read_text()).get("train_s")
-        converged = converged_seconds(losses, train_s) if train_s else None
-        if converged is not None:
-            with atomic_write(dest / CONVERGED, "w") as f:
-                json.dump({"converged_s": converged}, f)
+    metrics, losses = run / "metrics.json", run / "losses.csv"
+    train_s = json.loads(metrics.read_text()).get("train_s") if metrics.exists() else None
+    converged = converged_seconds(losses, train_s) if train_s and losses.exists() else converged_of(run) if train_s else None
+    _copy(run, dest, RECORD, converged)
 
 
-def sync(root: Path, archive: Path) -> tuple[int, int]:
-    """Bring the runs folder ``root`` and the archive ``archive`` level: every finished run of ``root`` whose stamp
-    the archive lacks or holds otherwise is recorded (:func:`record`), every archived run whose stamp ``root`` lacks
-    is restored there (its record's files; no ``losses.csv``). Returns (recorded, restored)."""
+def _vacant(folder: Path) -> bool:
+    """Whether nothing is in ``folder`` (absent or empty): a run is restored only there, never over an unfinished run's
+    files (a crashed one, or one running now)."""
+    return not folder.exists() or not any(folder.iterdir())
+
+
+def sync(root: Path, archive: Path, at: str | None = None) -> tuple[int, int]:
+    """Bring the runs folder ``root`` and the archive ``archive`` level: a finished run of ``root`` that the archive
+    lacks is recorded (:func:`record`), an archived run is restored into ``root`` where its folder is vacant (its
+    record's files; no ``losses.csv``). Where both hold a run at different commits, the one at ``at`` (the
+    regeneration's commit) replaces the other; with neither at ``at`` (or ``at`` None) both stay. Run it while no
+    regeneration runs in ``root``. Returns (recorded, restored)."""
     root, archive = Path(root), Path(archive)
     runs, kept = _finished(root), _finished(archive)
     recorded = restored = 0
     for rel, run in runs.items():
-        if rel not in kept or (kept[rel] / STAMP).read_bytes() != (run / STAMP).read_bytes():
+        if rel not in kept or ((kept[rel] / STAMP).read_bytes() != (run / STAMP).read_bytes() and at is not None
+                               and _commit(run) == at and _commit(kept[rel]) != at):  # fmt: skip
             record(run, archive / rel)
             recorded += 1
     for rel, saved in kept.items():
-        if rel not in runs and not (root / rel / STAMP).exists():
-            (root / rel).parent.mkdir(parents=True, exist_ok=True)
-            _copy(saved, root / rel, (*RECORD, CONVERGED))
+        dest = root / rel
+        newer = rel in runs and at is not None and _commit(saved) == at and _commit(runs[rel]) != at
+        if (rel not in runs and _vacant(dest)) or newer:
+            dest.parent.mkdir(parents=True, exist_ok=True)
+            _copy(saved, dest, (*RECORD, CONVERGED))
             restored += 1
     return recorded, restored
 
@@ -91,8 +106,9 @@ def main(argv=None) -> int:
                                      "drapebench.reproduce --archive` does first; for a worktree whose reproduce predates --archive.")
     parser.add_argument("runs", type=Path, help="the runs folder (a worktree's outputs/reproduce)")
     parser.add_argument("archive", type=Path, help="the archive (e.g. the main checkout's reports/runs)")
+    parser.add_argument("--commit", help="the regeneration's commit: where both hold a run, the one made at it wins (default: both stay)")
     args = parser.parse_args(argv)
-    recorded, restored = sync(args.runs, args.archive)
+    recorded, restored = sync(args.runs, args.archive, args.commit)
     print(f"archive {args.archive}: {restored} runs restored into {args.runs}, {recorded} recorded from it")
     return 0
 

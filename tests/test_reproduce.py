@@ -245,6 +245,15 @@ def test_a_run_that_cannot_be_planned_is_its_own_group_and_the_rest_still_plan(m
     assert trains == {jobs[0].dir}
     lines = summary([bad_key, *jobs, bad_value])
     assert sum(x.startswith("could not plan") for x in lines) == 2 and "all" in [x.split()[0] for x in lines]
+    vae = _jobs(Sweep("vae_table1", ("method=vae", "seed=0", "motion=kick", "motion.betas=[1.0,-1.0]", "garment=tshirt")))
+
+    def no_scene(cfg, scenes):
+        raise ValueError("garment.resolution must be > 0")
+
+    monkeypatch.undo()  # the real cache check, which builds the scene
+    monkeypatch.setattr(cost, "_scene", no_scene)  # a scene that cannot be built: named, with its reference set
+    lines = summary(vae)
+    assert any(x.startswith("could not build the scene") for x in lines) and any("its scene cannot be built" in x for x in lines)
 
 
 def test_run_all_with_two_workers_runs_each_group_in_turn_on_one_worker(tmp_path, monkeypatch):

@@ -45,17 +45,43 @@ def test_the_archive_keeps_the_records_and_a_new_machine_gets_them_back_as_finis
     assert (fresh / "gaps_table1/0/1_y/failed.json").exists()
 
 
-def test_a_run_made_again_replaces_its_record_and_a_finished_run_is_not_overwritten(tmp_path):
+def test_where_both_hold_a_run_the_one_at_the_regenerations_commit_wins(tmp_path):
+    """A run made again at the regeneration's commit replaces its archived record; an archived record at that commit
+    replaces an older local run; runs at neither commit, or a sync that names none, leave both as they are."""
     root, archive = tmp_path / "runs", tmp_path / "archive"
-    run = _run(root, "t/0/0_x", ["seed=0"])
+    run = _run(root, "t/0/0_x", ["seed=0"])  # at AT
     sync(root, archive)
-    (run / "reproduce.json").write_text(json.dumps({"overrides": ["seed=0"], "commit": "c" * 40, "experiment": "t"}))
+    new = "c" * 40
+    (run / "reproduce.json").write_text(json.dumps({"overrides": ["seed=0"], "commit": new, "experiment": "t"}))
     (run / "metrics.json").write_text(json.dumps({"method": "gaps", "eps_c": 0.2}))
-    assert sync(root, archive) == (1, 0)  # made again at another commit: its new record replaces the old
-    assert json.loads((archive / "t/0/0_x/metrics.json").read_text())["eps_c"] == 0.2
-    (archive / "t/0/0_x/metrics.json").write_text(json.dumps({"method": "gaps", "eps_c": 9.9}))
-    (archive / "t/0/0_x/reproduce.json").write_text((run / "reproduce.json").read_text())
-    assert sync(root, archive) == (0, 0) and json.loads((run / "metrics.json").read_text())["eps_c"] == 0.2  # the live run stays
+    assert sync(root, archive) == (0, 0) and sync(root, archive, "d" * 40) == (0, 0)  # no commit named, or neither at it
+    assert sync(root, archive, new) == (1, 0) and json.loads((archive / "t/0/0_x/metrics.json").read_text())["eps_c"] == 0.2
+    old = _run(tmp_path / "old_machine", "t/0/0_x", ["seed=0"])  # a stale local run at AT
+    assert sync(old.parents[2], archive, new) == (0, 1)  # the archive's run at the regeneration's commit comes back
+    assert json.loads((old / "metrics.json").read_text())["eps_c"] == 0.2
+
+
+def test_the_archive_never_overwrites_an_unfinished_run_nor_keeps_a_half_copy(tmp_path):
+    """A run folder without a stamp (running now, or crashed) is not replaced by its archived record; a leftover
+    ``*.tmp`` copy is no run; a restored run recorded again keeps its time to convergence; a run that did not train
+    reads none even with a stray converged.json."""
+    root, archive = tmp_path / "runs", tmp_path / "archive"
+    _run(archive, "t/0/0_x", ["seed=0"])
+    _run(archive, "t/0/1_y.tmp", ["seed=1"])
+    running = root / "t/0/0_x"
+    running.mkdir(parents=True)
+    (running / "losses.csv").write_text("step,loss\n0,1\n")
+    assert sync(root, archive, AT) == (0, 0) and sorted(p.name for p in running.iterdir()) == ["losses.csv"]
+    assert not (root / "t/0/1_y.tmp").exists()
+    trained = _run(tmp_path / "first", "t/0/2_z", ["seed=2"], train_s=600.0)
+    sync(tmp_path / "first", archive)
+    restored = tmp_path / "second"
+    sync(restored, archive)
+    sync(restored, tmp_path / "archive2")
+    assert collect([tmp_path / "archive2/t/0/2_z"]).iloc[0]["converged_s"] == collect([trained]).iloc[0]["converged_s"]
+    untrained = _run(tmp_path / "u", "r", ["seed=0"])
+    (untrained / "converged.json").write_text(json.dumps({"converged_s": 123.0}))
+    assert pd.isna(collect([untrained]).iloc[0].get("converged_s"))
 
 
 def test_a_regeneration_with_an_archive_records_each_run_as_it_finishes(tmp_path, monkeypatch):
