@@ -76,6 +76,25 @@ def test_quick_writes_a_table_and_claims_and_a_restart_reruns_nothing(tmp_path, 
     assert not finished(job, "other") and main([*args, "--dry-run"]) == 0 and "todo  baseline" in capsys.readouterr().out
 
 
+def test_an_archived_run_comes_back_on_a_new_machine_and_is_not_run_again(tmp_path, capsys, monkeypatch):
+    """--archive records each finished run; with the runs folder gone (a new machine) the run is restored and counts
+    as finished at the same commit; a dry run reports the archive without syncing it."""
+    import shutil
+
+    monkeypatch.setattr(reproduce, "commit", lambda: "0" * 40)
+    archive = tmp_path / "archive"
+    args = ["--quick", "--tables", "baseline", "--runs", str(tmp_path / "runs"), "--out", str(tmp_path / "out"), "--archive", str(archive)]
+    assert main(args) == 0 and len(list(archive.rglob("reproduce.json"))) == 1
+    capsys.readouterr()
+    shutil.rmtree(tmp_path / "runs")
+    assert main([*args, "--dry-run"]) == 0
+    said = capsys.readouterr().out
+    assert "not synced by a dry run" in said and "todo  baseline" in said and not (tmp_path / "runs").exists()
+    assert main(args) == 0
+    said = capsys.readouterr().out
+    assert "1 runs restored from it" in said and "1 runs, 1 already finished" in said
+
+
 @pytest.mark.parametrize("argv, said", [
     (["--tables", "", "--dry-run"], "--tables: no table named; leave --tables out"),  # would have rewritten claims.md alone
     (["--tables", ",", "--dry-run"], "--tables: no table named"),
