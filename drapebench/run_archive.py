@@ -108,7 +108,9 @@ def main(argv=None) -> int:
     parser.add_argument("archive", type=Path, help="the archive (e.g. the main checkout's reports/runs)")
     parser.add_argument("--commit", help="the regeneration's commit: where both hold a run, the one made at it wins (default: both stay)")
     args = parser.parse_args(argv)
-    recorded, restored = sync(args.runs, args.archive, args.commit)
+    from drapebench.staleness import known
+
+    recorded, restored = sync(args.runs, args.archive, (known(args.commit) or args.commit) if args.commit else None)  # a short sha: the full one
     print(f"archive {args.archive}: {restored} runs restored into {args.runs}, {recorded} recorded from it")
     return 0
 
