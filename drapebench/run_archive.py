@@ -16,8 +16,6 @@ import json
 import shutil
 from pathlib import Path
 
-from drapebench.cache import atomic_write
-
 RECORD = ("metrics.json", "failed.json", "env.json", "config.yaml", "reproduce.json", "evaluations.csv")
 STAMP = "reproduce.json"
 CONVERGED = "converged.json"
@@ -100,6 +98,7 @@ def converged_of(run: Path) -> float | None:
 
 
 def main(argv=None) -> int:
+    """``python -m drapebench.run_archive <runs> <archive> [--commit <sha>]``: :func:`sync` alone."""
     import argparse
 
     parser = argparse.ArgumentParser(description="Bring a regeneration's runs folder and its archive level (sync), as `python -m "
