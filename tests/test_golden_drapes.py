@@ -16,15 +16,14 @@ import pytest
 from tests.golden_drapes import GOLDEN, SHRUNK, drapes
 
 TOLERANCE_M = 1e-5  # float32 noise on a drape of about 1 m
-# Two methods amplify float32 noise: pbs's simulation over its frames, and the VAE's short trainings (Adam turns the
-# noise of near-zero gradients into whole steps). The same code on another CPU type moved pbs by 0.094 mm at most
-# (1.9e-7 m on average) and the VAE by 0.40 mm (3.5e-5 m on average); on one machine, MKL's AVX2 path instead of its
-# AVX-512 one moved them by 0.015 / 0.42 mm (6.9e-8 / 1.3e-5 m on average) (measured 2026-11-29). Their drapes are held
-# to (mean, max) tolerances about 4x that noise: the VAE's drape departs from lbs's by 4.0e-4 m on average. The VAE's
-# noise comes from its projection's 3 Adam steps a frame (without them it moves 3e-8 m, but then its drape is lbs's);
-# so it guards against changes above it only (in this scene even a doubled Laplacian or no collision term in its
-# loss moves it less, 1.6e-6 / 2.6e-6 m at most, measured without the projection steps), and pbs's against a change of its solver (iterations or
-# substeps: 9e-3 / 1.5e-2 m on average).
+# Two methods amplify float32 noise: pbs's simulation over its frames, and the VAE's projection (3 Adam steps a frame,
+# which turn the noise of near-zero gradients into whole steps; without them it moves 3e-8 m, but then its drape is
+# lbs's). The same code on another CPU type moved pbs by 0.094 mm at most (1.9e-7 m on average) and the VAE by 0.40 mm
+# (3.5e-5 m on average); MKL's AVX2 path instead of its AVX-512 one on one machine, by 0.015 / 0.42 mm (measured
+# 2026-11-29). Their (mean, max) tolerances are about 4x that noise. pbs's still catches a change of its solver
+# (iterations or substeps: 9e-3 / 1.5e-2 m on average); the VAE's only changes above its noise (its drape departs from
+# lbs's by 4.0e-4 m on average; a doubled Laplacian or no collision term in its loss moves this scene's VAE by 2.6e-6 m
+# at most, measured without the projection steps).
 NOISY_M = {"pbs": (1e-6, 5e-4), "vae": (1.5e-4, 2e-3)}
 
 

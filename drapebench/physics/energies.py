@@ -188,9 +188,8 @@ def _ring_moments(x: torch.Tensor, topo: Topology) -> torch.Tensor:
     of positions x (B, V, 3): the neighbours' offsets from the vertex (small numbers: no cancellation against
     positions of about 1 m), their mean outer product less the outer product of their mean (the covariance does not
     depend on the origin). Component-major, so that the gathers and sums over the rings (and their gradients) move
-    contiguous rows of the B frames and each entry is a contiguous (V, B) block: several times faster on a CPU than
-    (B, V, 6) (one self-supervised training step spent half its time here); callers work on that layout and transpose their
-    (V, B) result."""
+    contiguous rows of the B frames and each entry is a contiguous (V, B) block (on a CPU several times faster than
+    (B, V, 6)); callers work on that layout and transpose their (V, B) result."""
     owner, ring = topo.ring_owner, topo.ring_idx
     cnt = topo.ring_sizes.clamp_min(1).to(x.dtype)[:, None]
     B, V = x.shape[:2]
