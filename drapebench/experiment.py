@@ -70,12 +70,16 @@ def job_threads(cfg: DictConfig) -> int:
     return max(1, cores // parallel)
 
 
+def method_impl(cfg: DictConfig) -> str:
+    """The implementation a config names: ``method.impl``, else ``method.name`` (the schema's default)."""
+    return cfg.method.impl or cfg.method.name
+
+
 def method_class(cfg: DictConfig):
-    """The method class a config names (``method.impl``, else ``method.name``); ValueError naming the choices."""
+    """The method class a config names (:func:`method_impl`); ValueError naming the choices."""
     import methods
 
-    impl = cfg.method.impl or cfg.method.name
-    return methods.get(impl)
+    return methods.get(method_impl(cfg))
 
 
 CHECKPOINTS = Cache("checkpoints", 1)
@@ -195,10 +199,10 @@ def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir
     trained by other ``methods/<impl>`` code than this checkout's (its stored fingerprint, uncommitted edits
     included: :func:`drapebench.staleness.trained_by_changed_code`) is trained again, as a table would call its rows
     stale."""
-    code = code_of(cfg.method.impl)  # the code on disk before anything is read or trained (kept for the process: fingerprint's cache)
+    code = code_of(method_impl(cfg))  # the code on disk before anything is read or trained (kept for the process: fingerprint's cache)
     path = checkpoint_path(method, cfg, garment, data.body, train_cfg)
     state = CHECKPOINTS.load(path, partial(torch.load, map_location="cpu", weights_only=False), force=bool(cfg.force))
-    if state is not None and (why := trained_by_changed_code(cfg.method.impl, state)):
+    if state is not None and (why := trained_by_changed_code(method_impl(cfg), state)):
         log.warning("checkpoint %s: %s (drapebench.staleness); training it again", path.name, why)
         state = None
     if state is not None:

@@ -124,13 +124,17 @@ def plan(names: list, root: Path, quick: bool = False) -> list:
 
 def commit() -> str:
     """The code the runs execute: :func:`drapebench.results.git_commit`, and with uncommitted changes
-    ``<sha>-dirty+<hash of git diff HEAD>``, so that two sittings on different edits never share a label."""
-    from drapebench.results import git_commit
+    ``<sha>-dirty+<hash of git diff HEAD>``, so that two sittings on different edits never share a label. The diff
+    leaves out what a regeneration writes (:data:`drapebench.results.GENERATED`: the tables, the README's status, the
+    archive under ``reports/``), as ``git_commit`` does: the tables written, or the archive synced, before the last
+    table do not change the label of the runs it reads."""
+    from drapebench.results import GENERATED, git_commit
 
     at = git_commit()
     if not at.endswith("-dirty"):
         return at
-    diff = subprocess.run(["git", "diff", "HEAD"], cwd=PROJECT_ROOT, capture_output=True, check=False).stdout
+    excluded = [f":(exclude){g}" for g in GENERATED]
+    diff = subprocess.run(["git", "diff", "HEAD", "--", ".", *excluded], cwd=PROJECT_ROOT, capture_output=True, check=False).stdout
     return f"{at}+{hashlib.sha256(diff).hexdigest()[:12]}"
 
 
@@ -254,10 +258,10 @@ def run_all(jobs: list, at: str, say=print, workers: int = 1, runner=run_job) ->
     return [j for j in todo if j in failed]
 
 
-def write_tables(names: list, root: Path, out: Path, quick: bool = False, say=print) -> list:
+def write_tables(names: list, root: Path, out: Path, quick: bool = False, say=print, at: str | None = None) -> list:
     """Write each table of ``names`` into ``out`` from its runs under ``root`` (a benchmark's table: run its
     script, which ``quick`` skips: it is timed on its own scene), only once every run it plans has a result or a
-    recorded failure at this commit; returns the paths written."""
+    recorded failure at commit ``at`` (default :func:`commit`); returns the paths written."""
     from drapebench.report import evaluation_plot, write_table
 
     paths = []
@@ -273,7 +277,8 @@ def write_tables(names: list, root: Path, out: Path, quick: bool = False, say=pr
             paths.append(target.with_suffix(".csv"))
             continue
         planned = plan([s.sweeps_of or name], root, quick)
-        dirs = [j.dir for j in planned if finished(j, commit())]
+        at = at or commit()
+        dirs = [j.dir for j in planned if finished(j, at)]
         if len(dirs) < len(planned):  # a cell averaged over fewer scenes would change silently
             say(f"{name}: {len(planned) - len(dirs)} of its {len(planned)} runs have no result at this commit, not written "
                 f"(what {target.name} held stays); rerun the command to finish them")
@@ -315,6 +320,14 @@ def main(argv=None) -> int:
     if args.quick and out.resolve() == (PROJECT_ROOT / "reports").resolve():
         parser.error("--quick --out reports: quick tables are untrained 8-frame checks of the pipeline, not results, and would "
                      "replace the committed tables and claims.md; leave --out out or name another folder")
+    if args.archive:
+        from drapebench.run_archive import clash
+
+        if args.quick and args.archive.resolve().is_relative_to((PROJECT_ROOT / "reports").resolve()):
+            parser.error(f"--quick --archive {args.archive}: quick runs are untrained 8-frame checks of the pipeline, not results, "
+                         "and would enter the committed archive; leave --archive out or name a folder outside reports/")
+        if clash(root, args.archive):
+            parser.error(f"--archive {args.archive}: {clash(root, args.archive)}")
     names = [n for n in tables if n in args.tables or _needed_by(n, args.tables)]
     at = commit()
     if args.archive and args.dry_run:
@@ -337,7 +350,7 @@ def main(argv=None) -> int:
         print("\n".join(summary(todo)))
         return 0
     failed = run_all(jobs, at, workers=args.jobs, runner=_archiving(args.archive, root) if args.archive else run_job)
-    paths = write_tables([n for n in names if n in args.tables], root, out, args.quick)
+    paths = write_tables([n for n in names if n in args.tables], root, out, args.quick, at=at)
     from drapebench.claims import write_claims
 
     quick_note = "**--quick**: these verdicts read untrained 8-frame tables that check the pipeline; they are not results."

@@ -135,11 +135,11 @@ def _sealed(cfg, scenes: dict) -> bool:
     not trained by since-changed code); ``scenes`` (scene key -> scene) builds each distinct scene once."""
     from omegaconf import OmegaConf
 
-    from drapebench.experiment import checkpoint_path, loadable_checkpoint, method_class
+    from drapebench.experiment import checkpoint_path, loadable_checkpoint, method_class, method_impl
 
     scene = _scene(cfg, scenes)
     method = method_class(cfg)(OmegaConf.to_container(cfg.method.params, resolve=True))
-    return loadable_checkpoint(checkpoint_path(method, cfg, scene.garment, scene.body), cfg.method.impl)
+    return loadable_checkpoint(checkpoint_path(method, cfg, scene.garment, scene.body), method_impl(cfg))
 
 
 def _scene(cfg, scenes: dict):

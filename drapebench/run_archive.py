@@ -34,15 +34,33 @@ def _commit(run: Path) -> str | None:
     return json.loads((run / STAMP).read_text()).get("commit")
 
 
-def _copy(src: Path, dest: Path, names, converged: float | None = None) -> None:
+def portable_checkpoint(path: str | None) -> str | None:
+    """A run's checkpoint path without the machine's folders: from ``cache/checkpoints/`` on (relative to the data
+    folder, :func:`drapebench.cache.data_dir`), as the archive records it; other paths as they are."""
+    if not path:
+        return path
+    parts = Path(path).parts
+    at = next((i for i in range(len(parts) - 1) if parts[i : i + 2] == ("cache", "checkpoints")), None)
+    return path if at is None else "/".join(parts[at:])
+
+
+def _copy(src: Path, dest: Path, names, converged: float | None = None, portable: bool = False) -> None:
     """Copy the files ``names`` that ``src`` holds (and ``converged.json`` with ``converged``, if given) into
-    ``dest`` as a whole: into a temporary folder first, then renamed over ``dest`` (never left half-copied)."""
+    ``dest`` as a whole: into a temporary folder first, then renamed over ``dest`` (never left half-copied);
+    ``portable``: the metrics' checkpoint path as :func:`portable_checkpoint` writes it."""
+    from drapebench.cache import write_json
+
     tmp = dest.with_name(dest.name + ".tmp")
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir(parents=True)
     for name in names:
-        if (src / name).exists():
-            shutil.copy2(src / name, tmp / name)
+        if not (src / name).exists():
+            continue
+        shutil.copy2(src / name, tmp / name)
+        if portable and name == "metrics.json":
+            metrics = json.loads((src / name).read_text())
+            if metrics.get("checkpoint") != portable_checkpoint(metrics.get("checkpoint")):
+                write_json(tmp / name, {**metrics, "checkpoint": portable_checkpoint(metrics["checkpoint"])})
     if converged is not None:
         (tmp / CONVERGED).write_text(json.dumps({"converged_s": converged}))
     shutil.rmtree(dest, ignore_errors=True)
@@ -50,15 +68,15 @@ def _copy(src: Path, dest: Path, names, converged: float | None = None) -> None:
 
 
 def record(run: Path, dest: Path) -> None:
-    """The archive record of the finished run folder ``run`` into ``dest``: its :data:`RECORD` files and, when it
-    trained, ``converged.json`` with its ``converged_s`` (from its ``losses.csv``, or the record it was restored
-    from)."""
+    """The archive record of the finished run folder ``run`` into ``dest``: its :data:`RECORD` files (its checkpoint
+    path relative to the data folder) and, when it trained, ``converged.json`` with its ``converged_s`` (from its
+    ``losses.csv``, or the record it was restored from)."""
     from drapebench.train.convergence import converged_seconds
 
     metrics, losses = run / "metrics.json", run / "losses.csv"
     train_s = json.loads(metrics.read_text()).get("train_s") if metrics.exists() else None
     converged = converged_seconds(losses, train_s) if train_s and losses.exists() else converged_of(run) if train_s else None
-    _copy(run, dest, RECORD, converged)
+    _copy(run, dest, RECORD, converged, portable=True)
 
 
 def _vacant(folder: Path) -> bool:
@@ -97,6 +115,17 @@ def converged_of(run: Path) -> float | None:
     return json.loads(path.read_text()).get("converged_s") if path.exists() else None
 
 
+def clash(runs: Path, archive: Path) -> str:
+    """Why ``archive`` cannot keep the records of the runs folder ``runs`` ("" when it can): it is that folder (recording a
+    run into its own folder would strip it to its record), inside it or holding it (each sync would record the archive
+    into itself)."""
+    a, r = Path(archive).resolve(), Path(runs).resolve()
+    if a == r or a.is_relative_to(r) or r.is_relative_to(a):
+        return (f"the archive must be a folder apart from the runs folder {runs} (not it, not inside it, not holding it); "
+                "name another, e.g. reports/runs")
+    return ""
+
+
 def main(argv=None) -> int:
     """``python -m drapebench.run_archive <runs> <archive> [--commit <sha>]``: :func:`sync` alone."""
     import argparse
@@ -109,7 +138,15 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     from drapebench.staleness import known
 
-    recorded, restored = sync(args.runs, args.archive, (known(args.commit) or args.commit) if args.commit else None)  # a short sha: the full one
+    if clash(args.runs, args.archive):
+        parser.error(f"archive {args.archive}: {clash(args.runs, args.archive)}")
+    at = None
+    if args.commit:
+        at = known(args.commit) or (args.commit if "-dirty+" in args.commit else None)  # a short sha: the full one
+        if at is None:
+            parser.error(f"--commit {args.commit}: not a commit of this repository (its runs would never match); "
+                         "give the regeneration's commit, e.g. from `git log --oneline`")
+    recorded, restored = sync(args.runs, args.archive, at)
     print(f"archive {args.archive}: {restored} runs restored into {args.runs}, {recorded} recorded from it")
     return 0
 

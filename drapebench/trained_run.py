@@ -23,18 +23,32 @@ class TrainedRun(Scene):
 
 def load_run(run_dir: str | Path, device: str | torch.device | None = None) -> TrainedRun:
     """The :class:`TrainedRun` of the run folder ``run_dir`` (its ``config.yaml`` and ``metrics.json``), built as the
-    run built it (:meth:`Scene.from_config`: the run's dtype; the run's device unless ``device`` is given). Raises
-    FileNotFoundError when the run's checkpoint is no longer in the cache (rerun the run to train it again)."""
+    run built it (:meth:`Scene.from_config`: the run's dtype; the run's device unless ``device`` is given). A
+    relative checkpoint path (an archived run's) is read under :func:`drapebench.cache.data_dir`. Raises
+    FileNotFoundError when the run's checkpoint is no longer in the cache, and ValueError when the checkpoint there
+    is another model than the run's (trained again since, at another commit or for another time: the cache keeps
+    one model per configuration); rerun the run to get its model back."""
+    from drapebench.cache import data_dir
     from drapebench.experiment import method_class
 
     run_dir = Path(run_dir)
     cfg = OmegaConf.load(run_dir / "config.yaml")
-    ckpt = json.loads((run_dir / "metrics.json").read_text()).get("checkpoint")
+    metrics = json.loads((run_dir / "metrics.json").read_text())
+    ckpt = metrics.get("checkpoint")
+    if ckpt and not Path(ckpt).is_absolute():
+        ckpt = str(data_dir() / ckpt)
     if ckpt and not Path(ckpt).exists():
         raise FileNotFoundError(f"{run_dir}: its checkpoint {ckpt!r} is not in the cache; rerun the run to train it again")
+    state = torch.load(ckpt, map_location="cpu", weights_only=False) if ckpt else None
+    if state is not None:
+        ran = (metrics.get("trained_at"), metrics.get("train_s"))
+        now = (state.get("commit", "unrecorded"), state.get("train_s"))
+        if ran[0] is not None and ran != now:
+            raise ValueError(f"{run_dir}: the cached checkpoint {ckpt!r} is another model than the run's (trained at {now[0]} in "
+                             f"{now[1]} s; the run's: at {ran[0]} in {ran[1]} s); rerun the run to load or train its model again")
     scene = Scene.from_config(cfg, device=device)
     method = method_class(cfg)(OmegaConf.to_container(cfg.method.params, resolve=True))
     method.bind(scene.body, scene.material)
-    if ckpt:  # a method with nothing to learn (a skinning, an optimum row) has no checkpoint
-        method.load_state_dict(torch.load(ckpt, map_location="cpu", weights_only=False)["method"])
+    if state is not None:  # a method with nothing to learn (a skinning, an optimum row) has no checkpoint
+        method.load_state_dict(state["method"])
     return TrainedRun(**{f.name: getattr(scene, f.name) for f in fields(Scene)}, method=method)

@@ -135,6 +135,48 @@ def test_runs_on_other_uncommitted_edits_or_unknown_code_never_count_as_finished
     assert re.fullmatch("a{40}-dirty\\+[0-9a-f]{12}", reproduce.commit())
 
 
+def test_the_label_of_uncommitted_code_ignores_what_a_regeneration_writes(tmp_path, monkeypatch):
+    """A table written into reports/ (or the archive synced there) midway must not change the label of the runs the
+    next table reads; an edit of the code must."""
+    import subprocess
+
+    import drapebench.results
+
+    git = lambda *a: subprocess.run(["git", "-C", str(tmp_path), *a], check=True, capture_output=True)  # noqa: E731
+    git("init", "-q")
+    (tmp_path / "reports").mkdir()
+    for name in ("code.py", "reports/table.md", "README.md"):
+        (tmp_path / name).write_text("0\n")
+    git("add", ".")
+    git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", "c")
+    monkeypatch.setattr(reproduce, "PROJECT_ROOT", tmp_path)
+    monkeypatch.setattr(drapebench.results, "_COMMIT_AT_IMPORT", "a" * 40 + "-dirty")
+    (tmp_path / "code.py").write_text("1\n")
+    label = reproduce.commit()
+    (tmp_path / "reports/table.md").write_text("a table\n")
+    (tmp_path / "README.md").write_text("its status\n")
+    assert reproduce.commit() == label
+    (tmp_path / "code.py").write_text("2\n")
+    assert reproduce.commit() != label
+
+
+@pytest.mark.parametrize("where, said", [
+    ("runs", "a folder apart from the runs folder"),  # recording a run into itself would strip it to its record
+    ("runs/archive", "a folder apart from the runs folder"),  # each sync would record the archive into itself
+    (".", "a folder apart from the runs folder"),
+])
+def test_an_archive_that_is_or_holds_or_sits_in_the_runs_folder_is_refused(tmp_path, where, said, capsys):
+    with pytest.raises(SystemExit):
+        main(["--tables", "baseline", "--runs", str(tmp_path / "runs"), "--archive", str(tmp_path / where)])
+    assert said in capsys.readouterr().err
+
+
+def test_quick_runs_never_enter_the_committed_archive(capsys):
+    with pytest.raises(SystemExit):
+        main(["--quick", "--tables", "baseline", "--archive", str(ROOT / "reports" / "runs")])
+    assert "would enter the committed archive" in capsys.readouterr().err
+
+
 @pytest.mark.slow
 def test_quick_runs_every_table_s_pipeline(tmp_path):
     """Every table's sweeps on the tiny scene, its table and the claims (about 40 min on 2 busy cores)."""

@@ -8,7 +8,7 @@ import pandas as pd
 
 from drapebench.report import collect
 from drapebench.reproduce import Job, finished
-from drapebench.run_archive import sync
+from drapebench.run_archive import main, portable_checkpoint, sync
 from drapebench.table_specs import Sweep
 
 AT = "a" * 40
@@ -17,7 +17,8 @@ AT = "a" * 40
 def _run(root, rel, overrides, train_s=None, failed=False):
     d = root / rel
     d.mkdir(parents=True)
-    metrics = {"method": "gaps", "garment": "tshirt", "seed": 0, "eps_c": 0.1, **({"train_s": train_s} if train_s else {})}
+    metrics = {"method": "gaps", "garment": "tshirt", "seed": 0, "eps_c": 0.1, "checkpoint": "/machine/data/cache/checkpoints/gaps_0.pt",
+               **({"train_s": train_s} if train_s else {})}
     (d / ("failed.json" if failed else "metrics.json")).write_text(json.dumps(metrics))
     (d / "config.yaml").write_text("method:\n  name: gaps\n")
     (d / "env.json").write_text(json.dumps({"torch_threads": 1}))
@@ -97,3 +98,23 @@ def test_a_regeneration_with_an_archive_records_each_run_as_it_finishes(tmp_path
     monkeypatch.setattr(reproduce, "run_job", fake_run)
     assert reproduce.run_all([job], AT, say=lambda *_: None, runner=reproduce._archiving(archive, root)) == []
     assert (archive / "t/0/0_x/reproduce.json").exists()
+
+
+def test_a_commit_the_repository_does_not_know_or_an_archive_in_the_runs_folder_is_refused(tmp_path, capsys):
+    """A mistyped --commit would never match a stamp: both runs would silently stay."""
+    import pytest
+
+    for argv, said in (([str(tmp_path / "runs"), str(tmp_path / "archive"), "--commit", "aaaaaaz"], "--commit aaaaaaz: not a commit"),
+                       ([str(tmp_path / "runs"), str(tmp_path / "runs" / "archive")], "a folder apart from the runs folder")):
+        with pytest.raises(SystemExit):
+            main(argv)
+        assert said in capsys.readouterr().err
+
+
+def test_an_archived_record_names_its_checkpoint_without_the_machines_folders(tmp_path):
+    """The archive is committed: nothing in it may point at a file outside the repository."""
+    _run(tmp_path / "runs", "t/0/0_x", ["seed=0"])
+    sync(tmp_path / "runs", tmp_path / "archive")
+    kept = json.loads((tmp_path / "archive/t/0/0_x/metrics.json").read_text())
+    assert kept["checkpoint"] == "cache/checkpoints/gaps_0.pt" and kept["eps_c"] == 0.1
+    assert portable_checkpoint(None) is None and portable_checkpoint("elsewhere/x.pt") == "elsewhere/x.pt"

@@ -50,3 +50,22 @@ def test_a_float64_run_reloaded_by_load_run_and_by_the_export_gives_the_runs_own
     in_run = Drape.from_scene(torch.from_numpy(stored).double(), again.garment, again.seq, again.body, exported.label)
     for field in ("garment", "garment_rest", "strain", "body", "body_rest"):
         assert np.array_equal(getattr(exported, field), getattr(in_run, field)), field
+
+
+def test_load_run_reads_an_archived_runs_relative_checkpoint_and_refuses_a_model_trained_since(tmp_path, monkeypatch):
+    """The cache keeps one model per configuration: a model trained again since the run (another commit or time)
+    is not the run's, and loading it would diagnose another model without a word."""
+    import json
+
+    monkeypatch.setenv("DRAPEBENCH_DATA", str(tmp_path / "data"))
+    run_dir = tmp_path / "run"
+    run_dir.mkdir()
+    (run_dir / "config.yaml").write_text("method:\n  name: gaps\n")
+    metrics = {"checkpoint": "cache/checkpoints/gaps_0.pt", "trained_at": "a" * 40, "train_s": 12.5}
+    (run_dir / "metrics.json").write_text(json.dumps(metrics))
+    with pytest.raises(FileNotFoundError, match=str(tmp_path / "data" / "cache" / "checkpoints")):
+        load_run(run_dir)
+    (tmp_path / "data" / "cache" / "checkpoints").mkdir(parents=True)
+    torch.save({"method": {}, "commit": "b" * 40, "train_s": 30.0}, tmp_path / "data" / "cache" / "checkpoints" / "gaps_0.pt")
+    with pytest.raises(ValueError, match="another model than the run's"):
+        load_run(run_dir)
