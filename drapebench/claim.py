@@ -41,6 +41,14 @@ class Claim:
     why: str = ""
     notes: tuple = field(default_factory=tuple)
 
+    def __post_init__(self):
+        """A claim that cannot fail is refused: a "level" or "within" needs a finite ``bound`` (and "within" its
+        ``reference`` group); a ValueError names the claim."""
+        if self.kind in ("level", "within") and not abs(self.bound) < float("inf"):
+            raise ValueError(f"claim {self.id}: a {self.kind!r} claim needs a finite bound= (without one every value holds)")
+        if self.kind == "within" and not self.reference:
+            raise ValueError(f"claim {self.id}: a 'within' claim needs reference= (the group the others are compared with)")
+
     def credited_row(self) -> str:
         """The row the claim credits: ``credited``, ``row``, or the lower row that every ``greater`` pair names."""
         if self.credited or self.row:

@@ -79,18 +79,19 @@ class Table:
         return list(dict.fromkeys(r for r, _, _ in self.cells))
 
 
-_TRAINED = r"(?:[0-9a-f]{7,40}(?:-dirty)?|unrecorded|unknown)"  # a commit that trained a model, as report.trained_note writes it
+_COMMIT = r"[0-9a-f]{4,40}(?:-dirty)?"  # a commit as the tables write it (report.short_commit, or whole)
+_TRAINED = rf"(?:{_COMMIT}|unrecorded|unknown)"  # a commit that trained a model, as report.trained_note writes it
 
 
 def read_table(path: Path) -> Table:
     """A table's CSV (``#`` provenance lines, a one- or two-row header, a checksum footer) as a :class:`Table`;
     raises :class:`drapebench.table_file.TableError` naming the file and line of anything it cannot trust."""
     f = read_csv(path)
-    commits = re.search(r"commit\(?s?\)? ([0-9a-f, -]+?)(?: on |\.|$)", f.comments[0]) if f.comments else None
+    commits = re.search(rf"commit\(?s?\)? ({_COMMIT}(?:, {_COMMIT})*)(?: on |\.|$)", f.comments[0]) if f.comments else None
     commits = [c.strip() for c in commits.group(1).split(",")] if commits else []
     mixed = next((c for c in f.comments if c.startswith("**Mixed commits**")), "")
     row_commits = {m.group(1): [c.strip() for c in m.group(2).split(",")]
-                   for m in re.finditer(r"([\w.-]+) ([0-9a-f]{7,40}(?:, [0-9a-f]{7,40})*)(?=;|\.$)", mixed.split(": ", 1)[-1])}  # fmt: skip
+                   for m in re.finditer(rf"([\w.-]+) ({_COMMIT}(?:, {_COMMIT})*)(?=;|\.$)", mixed.split(": ", 1)[-1])}  # fmt: skip
     cached = next((c for c in f.comments if c.startswith("**Models trained at**")), "")
     trained_at = {m.group(1): [c.strip() for c in m.group(2).split(",")]
                   for m in re.finditer(rf"([\w.-]+) ({_TRAINED}(?:, {_TRAINED})*)(?=;|\.$)", cached.rsplit(": ", 1)[-1])}  # fmt: skip

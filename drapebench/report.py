@@ -130,7 +130,8 @@ def with_loss_gap(df: pd.DataFrame) -> pd.DataFrame:
     (a metric its method declares ``own_loss``, :class:`drapebench.metric_info.MetricInfo`: ``<loss>`` and
     ``<loss>@untrained``) and runs of ``<method>_optimum`` score the same scene (garment, motion, shape, body):
     100 (L_untrained - L) / (L_untrained - L_optimum), the share of the gap from the untrained start to the loss's
-    optimum (mean over the optimum's runs of the scene) that training closes."""
+    optimum (mean over the optimum's runs of the scene) that training closes; undefined (NaN, "–" in a table) where
+    the optimum is not below the untrained start (no gap to close)."""
     keys = [c for c in ("garment", "motion", "shape", "body") if c in df]
     gap = None
     for loss in (n for n, info in metric_catalogue().items() if info.own_loss):
@@ -139,7 +140,8 @@ def with_loss_gap(df: pd.DataFrame) -> pd.DataFrame:
         optima = df[df["method"].astype(str).str.endswith(OPTIMUM_SUFFIX)].groupby(["method", *keys], dropna=False)[loss].mean()
         opt = [optima.get((f"{r['method']}{OPTIMUM_SUFFIX}", *(r[k] for k in keys)), np.nan) for _, r in df.iterrows()]
         start = df[f"{loss}@untrained"]
-        closed = 100.0 * (start - df[loss]) / (start - np.asarray(opt, dtype=float))
+        gap_size = start - np.asarray(opt, dtype=float)
+        closed = 100.0 * (start - df[loss]) / gap_size.where(gap_size > 0)
         gap = closed if gap is None else gap.fillna(closed)
     return df if gap is None else df.assign(loss_gap_closed=gap)
 
@@ -301,12 +303,18 @@ def time_cut_note(df: pd.DataFrame) -> str:
     return "\n\n".join(notes)
 
 
+def short_commit(commit: str) -> str:
+    """A full commit hash as its first 7 digits, ``-dirty`` kept (uncommitted code is not the commit's); other labels
+    ("unrecorded", "unknown") as they are."""
+    return commit[:7] + ("-dirty" if "-dirty" in commit else "") if re.match(r"[0-9a-f]{40}", commit) else commit
+
+
 def commits_note(df: pd.DataFrame) -> str:
     """A warning naming each method's commits when the runs behind a table come from more than one commit
     ("" when they all come from one)."""
     if "commit" not in df or df["commit"].nunique() <= 1:
         return ""
-    per = df.groupby("method", sort=False)["commit"].agg(lambda c: ", ".join(str(x)[:7] for x in dict.fromkeys(c)))
+    per = df.groupby("method", sort=False)["commit"].agg(lambda c: ", ".join(short_commit(str(x)) for x in dict.fromkeys(c)))
     return (f"**Mixed commits**: the rows come from {df['commit'].nunique()} commits, so code changed between them: "
             + "; ".join(f"{m} {c}" for m, c in per.items()) + ".")
 
@@ -320,8 +328,7 @@ def trained_note(df: pd.DataFrame) -> str:
     other = df[df["trained_at"].notna() & (df["trained_at"] != df["commit"])]
     if other.empty:
         return ""
-    short = lambda c: c[:7] + ("-dirty" if "-dirty" in c else "") if re.match(r"[0-9a-f]{40}", c) else c  # noqa: E731
-    per = other.groupby("method", sort=False)["trained_at"].agg(lambda c: ", ".join(short(str(x)) for x in dict.fromkeys(c)))
+    per = other.groupby("method", sort=False)["trained_at"].agg(lambda c: ", ".join(short_commit(str(x)) for x in dict.fromkeys(c)))
     return ("**Models trained at**: some models were trained (and cached) by the code of another commit than their runs': "
             + "; ".join(f"{m} {c}" for m, c in per.items()) + ".")
 

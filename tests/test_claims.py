@@ -142,6 +142,10 @@ def test_a_row_from_another_commit_or_changed_code_makes_the_claim_stale(tmp_pat
     assert j.verdict == "stale: holds" and list(j.stale) == ["hi"] and "not the table's" in j.stale["hi"]
     t = _table(tmp_path, rows, commits=["0123456789abcdef0123456789abcdef01234567"])
     assert "not in this repository's history" in evaluate(ORDER, t).stale["hi"]
+    # a row run on uncommitted code is read as such (its -dirty kept in the provenance and the mixed-commits note)
+    t = _table(tmp_path, rows, commits=[parent, head + "-dirty"], mixed=f"hi {parent[:7]}; lo {head[:7]}-dirty")
+    assert t.row_commits["lo"] == [head[:7] + "-dirty"] and t.commits == [parent, head + "-dirty"]
+    assert "uncommitted" in evaluate(ORDER, t).stale["lo"]
     # a method's code that differs from the code the verdicts are judged against
     level = Claim("l", "P", "lbs low", "-", "level", table="t", metrics=("m",), row="lbs", bound=9, control_why="test")
     t = _table(tmp_path, {"lbs": ["1", "2"]})
@@ -311,3 +315,11 @@ def test_the_claims_and_tables_are_each_method_s_own_and_one_id_is_one_claim(mon
     monkeypatch.setattr(plugins, "declared", lambda module, attr: [("a", table_specs.TABLES[:1])])
     with pytest.raises(ValueError, match=f"table '{table_specs.TABLES[0].name}' declared twice"):
         table_specs.specs()
+
+
+def test_a_level_or_within_claim_without_its_bound_or_reference_is_refused():
+    """Without a bound every value would hold: a claim that cannot fail is not a claim."""
+    with pytest.raises(ValueError, match="claim lv: a 'level' claim needs a finite bound"):
+        Claim("lv", "P", "low", "-", "level", table="t", metrics=("m",), row="a", control_why="test")
+    with pytest.raises(ValueError, match="claim w: a 'within' claim needs reference="):
+        Claim("w", "P", "near", "-", "within", table="t", metrics=("m",), row="a", bound=2, control_why="test")

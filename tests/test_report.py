@@ -466,6 +466,15 @@ def test_a_table_from_several_commits_says_so(tmp_path):
     assert text.startswith("# baseline (rows from 2 commits)") and "**Mixed commits**: the rows come from 2 commits" in text and "gaps abc123, def4567" in text and "pbs abc123" in text
 
 
+def test_the_mixed_commits_note_keeps_a_rows_uncommitted_code_apart_from_its_commit():
+    import pandas as pd
+
+    from drapebench.report import commits_note
+
+    df = pd.DataFrame({"method": ["gaps", "lbs"], "commit": ["a" * 40 + "-dirty", "b" * 40]})
+    assert "gaps aaaaaaa-dirty; lbs bbbbbbb." in commits_note(df)
+
+
 def test_a_table_names_models_trained_by_another_commits_code(tmp_path):
     from drapebench.claims import read_table
 
@@ -549,7 +558,8 @@ def test_loss_gap_closed_is_the_share_of_the_untrained_to_optimum_gap(tmp_path):
 
     from drapebench.report import collect
 
-    runs = [("gaps", "1,-1", 2.0, 4.0), ("gaps_optimum", "1,-1", 1.0, 4.0), ("gaps", "2,0", 3.0, 3.5), ("gaps_kext1", "1,-1", 3.0, 4.0)]
+    runs = [("gaps", "1,-1", 2.0, 4.0), ("gaps_optimum", "1,-1", 1.0, 4.0), ("gaps", "2,0", 3.0, 3.5), ("gaps_kext1", "1,-1", 3.0, 4.0),
+            ("gaps", "3,0", 3.0, 3.0), ("gaps_optimum", "3,0", 3.0, 3.0)]
     for i, (method, shape, loss, start) in enumerate(runs):
         d = tmp_path / f"{i}_{method}"
         shutil.copytree(FIXTURES / "0_lbs_tshirt", d)
@@ -558,6 +568,7 @@ def test_loss_gap_closed_is_the_share_of_the_untrained_to_optimum_gap(tmp_path):
     gap = collect([tmp_path])["loss_gap_closed"].tolist()
     assert gap[0] == pytest.approx(100 * (4.0 - 2.0) / (4.0 - 1.0))  # two thirds of the way from its start to the optimum
     assert np.isnan(gap[2]) and np.isnan(gap[3])  # no optimum of that scene / of that loss (gaps_kext1_optimum): no column value
+    assert np.isnan(gap[4])  # the optimum is not below the start: no gap to close (not inf)
     md = write_table([tmp_path], "gaps_heldout_tshirt", tmp_path / "h")[0].read_text()
     assert "gap closed (%)" in md and "66.7" in md
 
