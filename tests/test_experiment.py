@@ -843,3 +843,15 @@ def test_without_git_every_commit_reads_unknown(monkeypatch):
         assert staleness.known("HEAD") is None and staleness.changed_since("gaps", "a" * 40) is None
     finally:
         staleness.known.cache_clear()
+
+
+def test_a_method_config_without_impl_is_its_names_implementation_everywhere():
+    """The schema's impl defaults to the name: the checkpoint's code fingerprint must follow it too (None would never
+    tell a model trained by changed code)."""
+    from omegaconf import OmegaConf
+
+    from drapebench.experiment import method_impl
+    from drapebench.staleness import code_of
+
+    cfg = OmegaConf.create({"method": {"impl": None, "name": "gaps"}})
+    assert method_impl(cfg) == "gaps" and code_of(method_impl(cfg)) == code_of("gaps") is not None

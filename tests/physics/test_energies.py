@@ -15,6 +15,7 @@ from drapebench.physics import (
     hinge_collision_energy,
     inertia_energy,
     inextensibility_energy,
+    laplacian,
     laplacian_smoothness,
     pin_energy,
     restrain_energy,
@@ -110,6 +111,11 @@ def test_closed_forms_of_the_simple_terms(sheet):
     assert np.isclose(restrain_energy(x * s, topo, 1e-3, 2e-3).item(), (((phi - 1e-3) / 2e-3) ** 2).sum().item())
     with pytest.raises(ValueError, match="fabric_std"):
         restrain_energy(x, topo, 1e-3, 0.0)
+    # smoothness: sum over vertices of |L x| (m), or of |L x|^2 with squared (the cotangent Laplacian applied to positions)
+    bumped = x + 0.01 * torch.randn_like(x)
+    lx = laplacian(bumped, topo)[0]
+    assert np.isclose(laplacian_smoothness(bumped, topo).item(), lx.norm(dim=-1).sum().item())
+    assert np.isclose(laplacian_smoothness(bumped, topo, squared=True).item(), (lx * lx).sum().item())
 
 
 def test_gaps_bending_blend_interpolates_flat_and_template(sheet):
