@@ -64,6 +64,8 @@ def test_uniform_stretch_and_reference_error(sphere_scene):
     assert summary["eps_e_std"] < 1e-3 and summary["eps_a_std"] < 1e-3  # the same stretch in every frame
     assert summary["jitter"] == 0.0 and summary["eps_c"] == 0.0 and summary["penetration_mm"] == 0.0
     assert summary["energy_stvk"] > 0 and "energy_collision" in summary
+    shrunk, _ = evaluate(garment, seq, body, garment.vertices[None].repeat(seq.n_frames, 1, 1) * 0.9, energies=False)
+    assert np.isclose(shrunk["eps_e"], 10.0, atol=1e-3) and np.isclose(shrunk["eps_a"], 19.0, atol=1e-3)  # a compression counts as much
 
 
 def test_jitter_zero_for_linear_motion_positive_for_shaking(sphere_scene):
