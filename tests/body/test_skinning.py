@@ -1,6 +1,6 @@
 import torch
 
-from drapebench.body.lbs import lbs
+from drapebench.body.lbs import inverse_lbs, lbs
 from drapebench.body.skinning import nearest_body_vertices, nearest_weights, transfer_shape
 
 
@@ -41,3 +41,20 @@ def test_lbs_keeps_the_root_translation_out_of_the_weights(body_lowres):
     here = lbs(pts.double(), w64, body64.forward(None, pose[1:].double(), None).transforms)
     there = lbs(pts.double(), w64, body64.forward(None, pose[1:].double(), far).transforms)
     assert (there - far - here).abs().max() < 1e-9  # m; blended whole: 30 km x 4e-8 = 1.2 mm
+
+
+def test_inverse_lbs_undoes_lbs_away_from_the_origin(body_lowres):
+    """The VAE's inverse-skinning projection: a translated, posed frame comes back to the rest points."""
+    pose = 0.3 * torch.randn(2, body_lowres.n_joints, 3, generator=torch.Generator().manual_seed(0))
+    trans = torch.tensor([[0.0, 0.0, 0.0], [2.0, -1.0, 0.5]])
+    A = body_lowres.forward(None, pose, trans).transforms
+    pts, w = body_lowres.v_template[:200], body_lowres.weights[:200]
+    torch.testing.assert_close(inverse_lbs(lbs(pts, w, A), w, A), pts.expand(2, -1, -1), atol=1e-4, rtol=0)
+
+
+def test_points_made_on_a_shaped_body_bind_to_that_body(body_lowres):
+    """A garment made on a non-mean body binds to the vertices of that body, not of the mean one."""
+    betas = torch.tensor([2.0, -2.0, 1.0])
+    shaped = body_lowres.shaped(body_lowres.full_betas(betas)[None])[0][0]
+    idx = nearest_body_vertices(shaped[::7] + 1e-4, body_lowres, betas)
+    assert torch.equal(idx, torch.arange(0, len(shaped), 7))

@@ -259,3 +259,13 @@ def test_inside_where_the_ray_runs_along_a_box_face():
     assert (np.abs(n[:, 2]) < 1e-12).any()  # some first rays do run in the plane
     assert inside_body(torch.as_tensor(p)[None], torch.as_tensor(V)[None], torch.as_tensor(F))[0].all()
 
+
+def test_the_exact_path_is_exact_for_points_on_and_off_the_body_queried_together(body_lowres):
+    """Its face culling must keep every face a point of the batch may be closest to, whatever the other points."""
+    v, faces = body_lowres.v_template.double(), body_lowres.faces
+    g = torch.Generator().manual_seed(0)
+    on = v[torch.randint(len(v), (10,), generator=g)]
+    off = on + 0.3 * torch.randn(10, 3, generator=g, dtype=torch.float64)
+    for a, b in zip(on, off):
+        together = signed_distance(torch.stack([a, b])[None], v[None], faces, exact=True)[0, 1]
+        torch.testing.assert_close(together, signed_distance(b[None, None], v[None], faces, exact=True)[0, 0])

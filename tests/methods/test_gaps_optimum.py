@@ -124,3 +124,21 @@ def test_a_run_scores_its_own_loss_below_its_start_at_the_optimum_and_level_with
     gaps.fit(TrainData(body=body, material=Material(), garment=g, load_train=lambda: [seq]), {"epochs": 0})
     untrained = gaps.diagnostics(g, seq, gaps.drape(g, seq))
     assert untrained["gaps_loss"] == pytest.approx(untrained["gaps_loss@untrained"], rel=1e-6)
+
+
+def test_a_training_window_feeds_the_network_what_a_drape_of_its_sequence_does(scene):
+    """The training batch's network input (betas, poses, root velocity of a window) is the input a drape of the same
+    sequence gives at those frames; its last three columns are the root velocity (m/s)."""
+    from methods.gaps.method import root_velocity
+
+    body, g, seq = scene
+    gaps = methods.get("gaps")(MEAN_BODY)
+    gaps.fit(TrainData(body=body, material=Material(), garment=g, load_train=lambda: [seq]), {"epochs": 0})
+    W, (_, t) = gaps.p["train"]["window"], gaps._windows[1]
+    betas, pose, vel, *_ = gaps._batch(np.array([1]), Step(0, 0, np.random.default_rng(0)))
+    drape_inputs = gaps.sequence_inputs(seq)  # (1, T, S + 3J + 3)
+    torch.testing.assert_close(gaps._inputs(betas, pose, vel), drape_inputs[:, t : t + W])
+    velocity = root_velocity(seq).to(drape_inputs.dtype)
+    assert not torch.equal(velocity[t : t + W], velocity[t - 1 : t + W - 1])  # the window sees the body start to move
+    raw = drape_inputs * gaps.input_std + gaps.input_mean if gaps.p["normalize_inputs"] else drape_inputs
+    torch.testing.assert_close(raw[0, :, -3:], velocity, atol=1e-5, rtol=1e-5)

@@ -91,6 +91,22 @@ def test_arap_without_body_motion_returns_the_template(body_lowres):
     assert (x - g.vertices).norm(dim=-1).median() < 1e-5
 
 
+def test_the_pins_follow_the_frames_body_shape(body_lowres):
+    """Pin rule "skinned": the template's pins move from the garment's body shape to the frame's (then are posed);
+    at the rest pose they sit where the body's shape change carries them."""
+    from drapebench.body.skinning import transfer_shape
+    from drapebench.garments import make_garment
+
+    g = make_garment("skirt", body_lowres, resolution=0.03)
+    b = bind(g.vertices, body_lowres.shaped(g.betas[None])[0][0], g.pins)
+    other = torch.tensor([2.0, -1.5])
+    _, transforms = front_aligned(body_lowres, other, torch.zeros(1, body_lowres.n_joints, 3))
+    pins_at = skinned_template(g.vertices, b, body_lowres, g.betas, other, transforms)[0]
+    moved = transfer_shape(g.vertices, b.nu, body_lowres, g.betas, other)
+    assert (moved - g.vertices).norm(dim=-1).max() > 5e-3  # the shape change moves them
+    torch.testing.assert_close(pins_at, moved, atol=1e-5, rtol=0)
+
+
 def test_front_alignment_removes_the_root_motion(body_lowres):
     pose = torch.zeros(2, body_lowres.n_joints, 3)
     pose[1, 0] = torch.tensor([0.0, 0.0, 1.2])  # the whole body turned about Z
@@ -647,3 +663,12 @@ def test_frames_draped_on_two_threads_are_the_frames_draped_one_by_one_and_bf16_
     assert torch.equal(out["one"], out["two"])
     apart = (out["bf16"] - out["one"]).norm(dim=-1)
     assert 0 < apart.mean() < 1e-3  # bf16 arithmetic ran, and moved the drape by well under a millimetre
+
+
+def test_eq1_weighs_the_normal_by_rho_and_the_tangent_by_one_minus_rho():
+    """Eq. 1 (tangent reading): D = |rho| n + (1 - |rho|) s b_hat, b_hat . n = 0, normalised."""
+    g = torch.Generator().manual_seed(0)
+    n = torch.nn.functional.normalize(torch.randn(50, 3, generator=g), dim=-1)
+    b1, b2, rho = torch.randn(50, generator=g), torch.randn(50, generator=g), 2 * torch.rand(50, generator=g) - 1
+    D, r = displacement_direction(b1, b2, rho, n, "tangent"), rho.abs()
+    torch.testing.assert_close((D * n).sum(-1), r / torch.sqrt(r**2 + (1 - r) ** 2))

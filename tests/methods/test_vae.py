@@ -16,9 +16,9 @@ from drapebench.geometry.topology import get_topology
 from methods.vae import losses
 from methods.vae.config import vae_params
 from methods.vae.descriptor import derivative, euler_zxy, generated_poses, motion_descriptor, unwrap
-from methods.vae.garment_model import garment_model
+from methods.vae.garment_model import garment_model, pose_garments
 from methods.vae.network import GarmentVAE
-from methods.vae.projection import project_sequences
+from methods.vae.projection import project_sequences, projection_terms
 from tests.meshes import grid_mesh
 
 
@@ -488,3 +488,47 @@ def test_the_fig3_table_is_one_the_scoreboard_reads(tmp_path, monkeypatch):
     assert table.rows() == list(projection_table.PROJECTIONS) and table.groups == ["tshirt", "dress"]
     assert table.get("inverse skinning", "dress", "ε_c canon. (%)").mean == 0.1
     assert table.get("optimised", "tshirt", "reproj. err. (mm)").mean == 1.0
+
+
+def test_the_garment_model_poses_the_canonical_body_onto_the_shaped_posed_body(body):
+    """Eq. 7-11 with betas != 0: the canonical body itself, shaped by its diffused offsets and skinned by its
+    weights, is the posed body of that shape, by the projection's model and by the drape's alike."""
+    diffused = NearestDiffused(body)
+    seq = make_sequence("walk", 4, seed=2, betas=[1.5, -1.5, 0.5, 0.0], transition=0)
+    X, betas = diffused.rest[None].expand(seq.n_frames, -1, -1), body.full_betas(seq.betas)
+    with torch.no_grad():
+        x = garment_model(diffused, X, betas[None].expand(seq.n_frames, -1), seq.transforms(body))
+        y = pose_garments(diffused, X, betas, seq.transforms(body))
+    torch.testing.assert_close(x, seq.vertices(body).to(x.dtype), atol=1e-4, rtol=0)
+    torch.testing.assert_close(y, x, atol=1e-4, rtol=0)
+
+
+def test_the_projection_strain_is_that_of_the_shaped_garment(body):
+    """The projection's strain term measures T_G(X), the canonical garment moved to the frame's body shape."""
+    diffused, (X, topo) = NearestDiffused(body), _garment_near(body)  # X unstrained: the topology's rest shape
+    A = make_sequence("static", 1, seed=0, transition=0).transforms(body)
+    cfg = {**vae_params(None)["projection"], "strain_weight": 1.0}
+    strain = {k: float(projection_terms(diffused, SphereSDF(c=(5.0, 5.0, 5.0)), topo, X[None], X[None],
+                                        body.full_betas(torch.tensor(b))[None], A, cfg)["strain"])
+              for k, b in (("mean", [0.0]), ("shaped", [2.0, -2.0]))}  # fmt: skip
+    assert strain["mean"] < 1e-6 and strain["shaped"] > 1e-3, strain
+
+
+def test_the_descriptor_s_accelerations_are_the_derivatives_of_its_velocities():
+    seq = make_sequence("walk", 20, fps=30.0, seed=1)
+    d, P = motion_descriptor(seq, seq.betas[:0]), 3 * (seq.poses.shape[1] - 1)  # [phi, dphi, d2phi, dH, d2H, dK, d2K]
+    torch.testing.assert_close(d[:, 2 * P : 3 * P], derivative(d[:, P : 2 * P], 30.0))
+    torch.testing.assert_close(d[:, 3 * P + 3 : 3 * P + 6], derivative(d[:, 3 * P : 3 * P + 3], 30.0))
+    assert d[2:, 2 * P : 3 * P].abs().max() > 0
+
+
+def test_the_descriptor_s_heading_rate_has_no_2pi_jumps():
+    """A body turning at a constant rate: the heading passes pi at frame 16, its rate stays constant."""
+    from types import SimpleNamespace
+
+    T, fps, rate = 40, 30.0, 0.2  # rad per frame about the vertical
+    poses = torch.zeros(T, 22, 3)
+    poses[:, 0, 2] = rate * torch.arange(T)
+    d = motion_descriptor(SimpleNamespace(poses=poses, trans=torch.zeros(T, 3), fps=fps), torch.zeros(0))
+    heading_rate = 3 * 3 * 21 + 6  # after phi, dphi, d2phi (3 x 21 joints x 3) and dH, d2H: dK's first angle, the heading
+    torch.testing.assert_close(d[1:, heading_rate], torch.full((T - 1,), rate * fps), atol=1e-3, rtol=0)
