@@ -263,3 +263,30 @@ def test_every_cache_kind_rebuilds_a_damaged_file(kind, damage, body_lowres, mon
     n = len(calls)
     call()
     assert len(calls) == n  # the rebuilt file is valid again
+
+
+def test_key_follows_an_arrays_dtype_and_shape_not_only_its_bytes():
+    from drapebench.cache import content_hash
+
+    a = np.zeros((2, 3))
+    assert content_hash(a) != content_hash(a.reshape(3, 2))
+    assert content_hash(a) != content_hash(np.zeros(12, dtype=np.float32))  # the same 48 zero bytes
+
+
+def test_key_does_not_depend_on_dict_insertion_order():
+    from drapebench.cache import content_hash
+
+    a = {"lr": 1e-3, "steps": 10, "nested": {"a": 1, "b": [1, 2]}}
+    b = {"nested": {"b": [1, 2], "a": 1}, "steps": 10, "lr": 1e-3}
+    assert content_hash(a) == content_hash(b) != content_hash({**a, "steps": 11})
+
+
+def test_body_key_follows_every_array_of_the_body_including_its_pose_blend_shapes():
+    from drapebench.cache import body_key
+
+    def body(posedirs):
+        return SimpleNamespace(v_template=torch.zeros(4, 3), shapedirs=torch.zeros(4, 3, 2), J_regressor=torch.eye(4)[:2],
+                               weights=torch.full((4, 2), 0.5), faces=torch.tensor([[0, 1, 2]]), parents=[-1, 0], posedirs=posedirs)
+
+    a, b, c = body(torch.zeros(9, 12)), body(torch.ones(9, 12)), body(torch.zeros(9, 12))
+    assert body_key(a) != body_key(b) and body_key(a) == body_key(c)

@@ -579,3 +579,8 @@ def test_the_scene_line_names_the_body_shapes_of_the_runs():
     df = pd.DataFrame({"garment": ["tshirt", "tshirt"], "body": ["anny"] * 2, "shape": ["mean", "b0=-1,b1=1.5"], "motion": ["kick"] * 2})
     assert scene(df) == "Scene: garments tshirt; body anny (shapes mean / b0=-1,b1=1.5); motions kick; reference drape none."
     assert "(shape b0=-1,b1=1.5);" in scene(df.iloc[1:])
+
+
+def test_a_cell_of_two_seeds_gives_their_mean_std_and_n(tmp_path):
+    t = table(_seeded_runs(tmp_path, [1.0, 2.0]), ["eps_e"])
+    assert t.loc["gaps", ("tshirt", "ε_e (%)")] == f"1.500 ± {np.std([1.0, 2.0], ddof=1):.3f} (n=2)"

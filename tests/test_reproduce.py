@@ -382,3 +382,19 @@ def test_a_benchmark_table_names_an_output_path_anyone_can_rerun(monkeypatch):
     monkeypatch.setattr(subprocess, "run", lambda argv, **kw: calls.append(argv))
     reproduce.write_tables(["vae_table2"], Path("unused"), ROOT / "reports", say=lambda s: None)
     assert len(calls) == 1 and "reports/vae_table2" in calls[0] and not any(str(ROOT) in a for a in calls[0][1:])
+
+
+def test_a_run_that_recorded_its_failure_has_finished(tmp_path):
+    """on_failure=record: the failure is the run's result (a "failed" cell); a restart must not run it again."""
+    (job,) = plan(["baseline"], tmp_path / "runs", quick=True)
+    job.dir.mkdir(parents=True)
+    (job.dir / "failed.json").write_text(json.dumps({"message": "diverged"}))
+    (job.dir / "reproduce.json").write_text(json.dumps({"overrides": list(job.overrides), "commit": "a" * 40}))
+    assert finished(job, "a" * 40)
+    (job.dir / "failed.json").unlink()
+    assert not finished(job, "a" * 40)  # a stamp alone is no result
+
+
+def test_a_per_garment_method_needs_a_training_per_garment():
+    counts = tally(_jobs(Sweep("gaps_table3", ("method=gaps", "motion.betas=[0.0]", "seed=0", "garment=tshirt,skirt"))))[0]
+    assert {m: (r["runs"], len(r["trainings"])) for m, r in counts.items()} == {"gaps": (2, 2)}

@@ -155,3 +155,12 @@ def test_warp_prints_no_cuda_warning_without_cuda(code):
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stderr
     assert "CUDA" not in p.stderr and "CUDA" not in p.stdout, p.stderr
+
+
+def test_cache_key_follows_the_sequences_body_shape(scene, body_lowres, stub):
+    g, seq = scene
+    other = make_sequence("walk", 6, transition=2, seed=3, betas=[1.0, -1.0])
+    assert other.name == seq.name and torch.equal(other.poses, seq.poses)  # only the body shape differs
+    simulate(g, seq, body_lowres, Material(), progress=False)
+    simulate(g, other, body_lowres, Material(), progress=False)
+    assert len(stub) == 2

@@ -248,3 +248,26 @@ def test_a_cached_drape_that_snags_is_simulated_again(scene, body_lowres, monkey
     with pytest.raises(SimulationDiverged, match="snagged"):
         simulate_record(g, seq, body_lowres, Material(), settle_frames=SETTLE, retry_substeps=[], progress=False)
     assert steps == [10, 10] and "fails its checks" in caplog.text
+
+
+def test_an_edge_stretched_every_other_frame_is_not_a_snag(scene, body_lowres, monkeypatch, tmp_path):
+    monkeypatch.setenv("DRAPEBENCH_DATA", str(tmp_path))
+    monkeypatch.setattr(simulator, "SNAG_SECONDS", 0.1)  # 3 frames at 30 fps (the run has 2 + 4)
+    g, seq = scene
+    v, offset = free_vertex(g), pulled(g, free_vertex(g), 3.0)
+
+    def flapping(x, n):
+        x[v] += offset if n % 2 == 0 else 0.0  # past SNAG_STRETCH on frames 2, 4, 6: never 3 in a row
+        return x
+
+    steps = fake_scene(monkeypatch, flapping)
+    rec = simulate_record(g, seq, body_lowres, Material(), settle_frames=SETTLE, retry_substeps=[], progress=False)
+    assert steps == [10] and not rec.from_cache
+
+
+def test_speed_is_each_frames_displacement_not_the_distance_from_the_start(scene, body_lowres, monkeypatch, tmp_path):
+    monkeypatch.setenv("DRAPEBENCH_DATA", str(tmp_path))
+    g, seq = scene
+    steps = fake_scene(monkeypatch, lambda x, n: x + np.float32([0.0, 0.0, n / 30.0]))  # rises steadily at 1 m/s
+    rec = simulate_record(g, seq, body_lowres, Material(), settle_frames=SETTLE, retry_substeps=[], max_speed=2.0, progress=False)
+    assert steps == [10] and rec.stats["max_speed"] == pytest.approx(1.0, rel=1e-3)

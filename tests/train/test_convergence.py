@@ -30,3 +30,8 @@ def test_converged_seconds_scales_the_training_time_by_the_steps(tmp_path):
     assert converged_seconds(tmp_path / "empty.csv", 0.01) is None  # a run with zero epochs
     with pytest.raises(ValueError, match="finite"):
         converged_step(np.array([1.0, np.nan]))
+
+
+def test_a_step_down_converges_at_the_first_step_whose_window_holds_only_the_new_level():
+    loss = np.r_[np.full(50, 4.0), np.full(150, 1.0)]
+    assert converged_step(loss) == 60  # window 10: steps 51-60 are the first window at the final level

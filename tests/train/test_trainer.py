@@ -248,3 +248,75 @@ def test_a_training_of_several_stages_ends_as_its_least_deterministic_stage():
 
     assert combined_stop("done", "clock", "done") == "clock" and combined_stop("clock", "time") == "time"
     assert combined_stop("done") == "done" and combined_stop() == "done"
+
+
+def test_grad_clip_scales_the_gradient_the_step_takes_to_the_clip(tmp_path):
+    objective, params = toy()
+    res = train(objective, {**BUDGET, "steps": 1, "ema_decay": None}, checkpoint_dir=tmp_path)
+    assert res.history[0]["grad_norm"] > 2 * BUDGET["grad_clip"]  # the norm logged is the one before the clip
+    stepped = torch.linalg.vector_norm(torch.stack([p.grad.norm() for p in params]))  # what Adam was given
+    assert float(stepped) == pytest.approx(BUDGET["grad_clip"], rel=1e-4)
+
+
+def _polyak(trajectory, decay):
+    """The trainer's EMA (TF warm-up: decay min(d, (1 + n) / (10 + n)) at step n) of a list of parameter lists."""
+    ema = [t.clone() for t in trajectory[0]]
+    for n, now in enumerate(trajectory[1:], start=1):
+        ema = [e + (1 - min(decay, (1 + n) / (10 + n))) * (p - e) for e, p in zip(ema, now)]
+    return ema
+
+
+def test_the_model_is_the_polyak_average_of_the_steps_with_its_warm_up(tmp_path):
+    budget = {**BUDGET, "steps": 12}
+    objective, (w, v) = toy()
+    seen = []
+    inner = objective.loss_terms
+    objective.loss_terms = lambda b, at: seen.append([w.detach().clone(), v.detach().clone()]) or inner(b, at)
+    train(objective, {**budget, "ema_decay": None}, checkpoint_dir=tmp_path / "raw")  # the same steps, not averaged
+    trajectory = [*seen, [w.detach().clone(), v.detach().clone()]]
+    averaged, params = toy()
+    train(averaged, budget, checkpoint_dir=tmp_path / "ema")
+    assert all(torch.allclose(p, e, atol=1e-6) for p, e in zip(params, _polyak(trajectory, BUDGET["ema_decay"])))
+    assert not torch.allclose(params[0], trajectory[-1][0], atol=1e-3)  # not the last step's weights
+
+
+def test_a_time_cut_run_with_ema_keeps_the_averaged_weights_of_its_best_checkpoint(tmp_path):
+    budget = {**BUDGET, "steps": 50, "checkpoint_every": 1, "ema_decay": 0.9, "max_minutes": 1.0 / 60}
+    objective, (w, v) = toy(sleep_s=0.4, slow_from=2, jump_at=2)  # the loss jumps 100x from step 2: earlier is best
+    at_step = []
+    inner = objective.loss_terms
+    objective.loss_terms = lambda b, at: at_step.append([w.detach().clone()]) or inner(b, at)
+    res = train(objective, budget, checkpoint_dir=tmp_path)
+    losses = [h["loss"] for h in res.history]
+    best = losses.index(min(losses))
+    assert res.stopped == "time" and best < 2
+    (ema,) = _polyak(at_step[: best + 2], 0.9)  # the average after step best + 1
+    assert torch.allclose(w, ema, atol=1e-6) and not torch.equal(w, at_step[best + 1][0])
+
+
+def test_the_lr_decay_follows_the_steps_done_before_each_step_and_the_last_step_still_learns(tmp_path):
+    budget = {**BUDGET, "steps": 20, "lr_switch_epoch": None, "lr_decay_fraction": 0.5, "ema_decay": None}
+    res = train(toy()[0], budget, checkpoint_dir=tmp_path)
+    lrs = [h["lr"] for h in res.history]
+    assert lrs == pytest.approx([BUDGET["lr"] * min(1.0, (1 - k / 20) / 0.5) for k in range(20)])
+    assert lrs[-1] > 0
+
+
+def test_a_resumed_time_budget_counts_the_time_trained_before_the_interruption(tmp_path):
+    budget = {**BUDGET, "steps": 100, "checkpoint_every": 1, "ema_decay": None, "max_minutes": 3.0 / 60}
+    with pytest.raises(KeyboardInterrupt):  # 5 steps of 0.3 s: half the budget
+        train(toy(sleep_s=0.3, interrupt_at=5)[0], budget, checkpoint_dir=tmp_path)
+    res = train(toy(sleep_s=0.3)[0], budget, checkpoint_dir=tmp_path)
+    assert res.resumed_from is not None and res.stopped == "time"
+    assert res.train_s < 3.0 + 0.9  # the other half, not a whole budget more
+
+
+def test_a_resumed_training_remembers_that_its_lr_followed_the_clock(tmp_path):
+    budget = {**BUDGET, "steps": 20, "ema_decay": None, "lr_switch_epoch": None, "lr_decay_fraction": 0.5, "max_minutes": 4.0 / 60}
+    objective = toy(key="clock", interrupt_at=15)[0]
+    inner = objective.loss_terms
+    objective.loss_terms = lambda b, at: (time.sleep(2.5) if at.step == 0 else None) or inner(b, at)  # the clock ahead
+    with pytest.raises(KeyboardInterrupt):
+        train(objective, budget, checkpoint_dir=tmp_path)
+    res = train(toy(key="clock")[0], budget, checkpoint_dir=tmp_path)  # from step 15 on the steps are ahead of the clock
+    assert res.resumed_from is not None and res.n_steps == 20 and res.stopped == "clock"
