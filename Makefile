@@ -29,7 +29,7 @@ $(BIN)/.installed-dev: $(BIN)/.installed
 	$(BIN)/pip install --progress-bar on -e ".[dev]"
 	touch $@
 
-# The simulator's warp kernels, compiled once per environment (about 80 s on 2 cores) before the
+# The simulator's warp kernels, compiled once per environment (about a minute on 2 cores) before the
 # first test session; warp keeps them in data/cache/warp (drapebench/reference/kernels.py).
 KERNELS := $(WARP_CACHE_PATH)/.compiled
 
