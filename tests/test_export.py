@@ -164,3 +164,18 @@ def test_an_export_clears_a_killed_exports_temporary_files_and_names_a_folder_it
         main([str(out), "--format", "pc2"])
     err = capsys.readouterr().err
     assert f"cannot write the pc2 export into {out / 'export'}" in err and "make the folder writable" in err and "Traceback" not in err
+
+
+def test_usd_display_colour_follows_each_frames_strain(finished_run):
+    from pxr import Usd, UsdGeom
+
+    from drapebench.viz import strain_rgb
+
+    stage = Usd.Stage.Open(str(finished_run[0] / "export" / "drape.usd"))
+    primvars = UsdGeom.PrimvarsAPI(stage.GetPrimAtPath("/drape/garment"))
+    T = N_FRAMES + TRANSITION
+    colours = [np.array(primvars.GetPrimvar("displayColor").Get(t)) for t in range(T)]
+    for t in (0, T - 1):
+        strain = np.array(primvars.GetPrimvar("strain").Get(t), dtype=np.float32)
+        assert np.allclose(colours[t], strain_rgb(strain) / 255.0, atol=1e-6), t
+    assert not np.allclose(colours[0], colours[-1])  # the kick stretches the skirt: its colours change

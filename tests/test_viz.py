@@ -22,7 +22,7 @@ def test_strain_colors_white_at_rest_red_when_stretched():
     c = strain_colors(x, topo, max_strain=0.1)
     assert c.shape == (2, 4, 3) and c.dtype == np.uint8
     assert (c[0] > 230).all()  # white at rest
-    assert (c[1, :, 0] > c[1, :, 2] + 100).all()  # red-orange where edges changed
+    assert (c[1, :, 0].astype(int) > c[1, :, 2].astype(int) + 100).all()  # red-orange where edges changed (in int: uint8 + 100 wraps)
 
 
 def test_recording_verifies(tmp_path):
@@ -162,3 +162,11 @@ def test_a_recording_renders_a_shaded_body_in_a_framed_view(tmp_path, body_lowre
     assert counts.max() < 0.5 * counts.sum(), "the body is one flat colour (a silhouette): no vertex normals"
     magenta = (r > 150) & (b > 120) & (gr < 90)
     assert magenta.sum() > 50, "the garment's inside-the-body vertices are not magenta"
+
+
+def test_strain_colour_scale_is_white_orange_red():
+    from drapebench.viz import strain_rgb
+
+    c = strain_rgb(np.array([0.0, 0.05, 0.1, 0.5]))
+    assert c.tolist() == [[235, 235, 240], [255, 160, 40], [210, 30, 30], [210, 30, 30]]  # white 0, orange 5 %, red >= 10 %
+    assert (np.diff(strain_rgb(np.linspace(0.05, 0.1, 11))[:, 1].astype(int)) <= 0).all()  # orange darkens to red

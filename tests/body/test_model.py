@@ -209,3 +209,15 @@ def test_lbs_in_chunks_equals_one_pass(monkeypatch, per_frame):
     monkeypatch.setattr(lbs_module, "LBS_CHUNK", 3)
     chunked = lbs_module.lbs(points, weights, transforms)
     assert chunked.shape == (B, N, 3) and torch.allclose(chunked, whole, rtol=0, atol=1e-12)
+
+
+def test_transforms_without_the_vertices_equal_the_skinned_ones(body_lowres):
+    from drapebench.body import make_sequence
+
+    seq = make_sequence("walk", 6, seed=0, transition=0)
+    assert seq.trans[:, :2].abs().max() > 0.05  # the root travels
+    posed = body_lowres.forward(seq.betas[None], seq.poses, seq.trans)
+    bare = body_lowres.forward(seq.betas[None], seq.poses, seq.trans, skin=False)
+    assert bare.vertices is None
+    assert torch.allclose(bare.transforms, posed.transforms, atol=1e-5) and torch.allclose(bare.joints, posed.joints, atol=1e-5)
+    assert torch.allclose(seq.transforms(body_lowres), posed.transforms, atol=1e-5)  # the sequence's, without posing vertices

@@ -187,3 +187,26 @@ def test_hydra_motion_configs_match_the_generators():
         cfg = OmegaConf.load(p)
         assert cfg.name == p.stem and cfg.n_frames > 0 and cfg.fps > 0 and cfg.transition >= 0
         assert set(cfg.params) <= set(motion_defaults(cfg.name)), p.name
+
+
+def test_limit_violation_measures_both_ends_of_a_range():
+    from drapebench.body.bake import JOINT_NAMES
+
+    knee = JOINT_NAMES.index("left_knee")
+    pose = np.zeros((1, 22, 3))
+    pose[0, knee, 0] = JOINT_LIMITS[knee, 0, 0] - 0.2  # hyperextended
+    pose[0, knee, 1] = JOINT_LIMITS[knee, 1, 1] + 0.1
+    v = limit_violation(pose)
+    assert np.isclose(v[0, knee, 0], 0.2, atol=1e-5) and np.isclose(v[0, knee, 1], 0.1, atol=1e-5)
+    assert np.isclose(v.sum(), 0.3, atol=1e-5)
+    assert limit_violation(np.zeros((1, 22, 3))).max() == 0.0
+
+
+def test_transition_envelope_is_c2_at_both_ends():
+    """Velocity and acceleration stay continuous: the smoothstep's second derivative vanishes at 0 and 1."""
+    from drapebench.body.motions import smoothstep
+
+    h = 1e-3
+    s = smoothstep(np.array([0.0, h, 2 * h, 1 - 2 * h, 1 - h, 1.0]))
+    assert abs(s[2] - 2 * s[1] + s[0]) / h**2 < 0.1 and abs(s[5] - 2 * s[4] + s[3]) / h**2 < 0.1
+    assert s[0] == 0.0 and s[-1] == 1.0 and abs(s[1] - s[0]) / h < 1e-4

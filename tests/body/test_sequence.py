@@ -95,3 +95,17 @@ def test_a_held_pose_is_posed_once_and_every_frame_matches_posing_it_afresh(body
     assert torch.equal(seq.vertices(body_lowres), out.vertices) and torch.equal(seq.transforms(body_lowres), out.transforms)
     walk = make_sequence("walk", 8, seed=0, transition=0)
     assert torch.equal(walk.held_frames(), torch.arange(walk.n_frames))  # a moving body: every frame its own
+
+
+def test_a_held_pose_on_a_moving_root_is_posed_at_every_frame(body_lowres):
+    trans = torch.tensor([[0.0, 0.0, 0.0], [0.0, -0.1, 0.0], [0.0, -0.2, 0.0], [0.0, -0.2, 0.0]])
+    seq = BodySequence("glide", "static", torch.zeros(10), torch.zeros(4, 22, 3), trans)
+    assert seq.held_frames().tolist() == [0, 1, 2, 2]
+    v = seq.vertices(body_lowres)
+    assert torch.allclose(v - v[:1], (trans - trans[0])[:, None].expand_as(v), atol=1e-5)
+
+
+def test_a_slice_keeps_only_the_transition_frames_it_holds():
+    seq = make_sequence("walk", 10, seed=0, transition=6)
+    assert seq.slice(0, 3).n_transition == 3 and seq.slice(4, 12).n_transition == 2
+    assert seq.slice(6).n_transition == 0 and seq.slice(10, 16).n_transition == 0

@@ -126,3 +126,40 @@ def test_a_garment_made_for_the_sequence_shape_at_the_end_of_the_shape_space(bod
     assert garment_from_config({**cfg, "betas": None}, body_lowres, [0.0, 3.0]).betas.abs().sum() == 0
     with pytest.raises(ValueError, match="garment.betas must be null .* or a list of numbers"):
         garment_from_config({**cfg, "betas": "heavy"}, body_lowres)
+
+
+def test_a_negative_ease_or_a_resolution_out_of_range_is_refused():
+    with pytest.raises(ValueError, match=r"ease -0.01 m is outside \[0, "):
+        garment_params("skirt", ease=-0.01)
+    with pytest.raises(ValueError, match=r"closing -0.02 m is outside \[0, "):
+        garment_params("tshirt", closing=-0.02)
+    with pytest.raises(ValueError, match=r"resolution 0.2 m is outside \[0.003, 0.05\]"):
+        garment_params("skirt", resolution=0.2)
+    with pytest.raises(ValueError, match=r"resolution 0.001 m is outside"):
+        garment_params("skirt", resolution=0.001)
+    assert garment_params("skirt", ease=0.0, resolution=0.05)["ease"] == 0.0
+
+
+def test_user_pins_outside_the_vertex_range_or_too_few_are_refused():
+    from drapebench.garments.pins import check_pins
+
+    with pytest.raises(ValueError, match=r"pin indices \[-1\] are outside \[0, 10\)"):
+        check_pins([-1, 2, 3, 4], 10, "toy")
+    with pytest.raises(ValueError, match=r"pin indices \[10\] are outside"):
+        check_pins([1, 2, 3, 10], 10, "toy")
+    with pytest.raises(ValueError, match="2 distinct pins given"):
+        check_pins([1, 1, 2], 10, "toy")
+    assert check_pins([0, 5, 9], 10, "toy").tolist() == [0, 5, 9]
+
+
+def test_triangle_quality_fails_below_99_percent_well_shaped_triangles():
+    from drapebench.garments.validate import GarmentReport, triangle_quality
+
+    good = np.array([[0.0, 0, 0], [1, 0, 0], [0.5, 0.87, 0]])
+    sliver = np.array([[0.0, 0, 0], [1, 0, 0], [0.5, 0.05, 0]])  # min angle < 6 deg
+    for n_bad, fails in ((5, True), (1, False)):
+        tris = [good] * (100 - n_bad) + [sliver] * n_bad
+        V = np.concatenate([t + [2.0 * k, 0, 0] for k, t in enumerate(tris)])
+        report = GarmentReport()
+        triangle_quality(V, np.arange(len(V)).reshape(-1, 3), report, None)
+        assert ("triangle_quality" in report.failures) == fails, n_bad

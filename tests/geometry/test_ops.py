@@ -84,3 +84,16 @@ def test_degenerate_inputs_have_finite_gradients():
         total.backward()
         assert torch.isfinite(total) and torch.isfinite(x.grad).all(), dtype
         assert abs(abs(dihedral_angles(x.detach(), t)[4].item()) - np.pi) < 1e-3
+
+
+def test_ring_smooth_averages_each_vertex_with_its_one_ring():
+    from drapebench.geometry.ops import ring_smooth
+
+    V, F = random_mesh(4)
+    topo = get_topology(V, F, dtype=torch.float64, cache=False)
+    x = torch.randn(len(V), 2, dtype=torch.float64)
+    ptr, idx = topo.ring_ptr.tolist(), topo.ring_idx
+    expected = torch.stack([(x[v] + x[idx[ptr[v] : ptr[v + 1]]].sum(0)) / (ptr[v + 1] - ptr[v] + 1) for v in range(len(V))])
+    assert torch.allclose(ring_smooth(x, topo, 1), expected, atol=1e-12)
+    ones = torch.ones(len(V), 1, dtype=torch.float64)
+    assert torch.allclose(ring_smooth(ones, topo, 3), ones, atol=1e-12)  # a constant stays constant

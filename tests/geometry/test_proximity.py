@@ -106,3 +106,11 @@ def test_gpu_path_matches_cpu():
     cpu = nearest_body_vertex(p, V, normals)
     gpu = nearest_body_vertex(p.cuda(), V.cuda(), normals.cuda())
     assert torch.equal(cpu.index, gpu.index.cpu())
+
+
+def test_negative_candidate_indices_are_refused():
+    body, normals = torch.randn(1, 10, 3), torch.randn(1, 10, 3)
+    with pytest.raises(ValueError, match="candidates"):
+        nearest_body_vertex(torch.zeros(1, 4, 3), body, normals, torch.tensor([-1, 3]))
+    with pytest.raises(ValueError, match="candidates"):
+        body_vertex_tree(body[0], torch.tensor([-2, 0, 1]))

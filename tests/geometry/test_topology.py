@@ -159,3 +159,15 @@ def test_dtype_device_and_cache_keys(tmp_path, monkeypatch):
         get_topology(V, F, dtype=torch.int64)
     with pytest.raises(ValueError, match="faces index"):
         get_topology(V, F + len(V), cache=False)
+
+
+def test_hinge_faces_hold_their_hinge_edge_and_opposite_vertex():
+    """Each hinge's two faces are distinct, and face k holds the hinge edge (in its own order for the first) and opposite vertex k."""
+    V, F = grid_mesh(5, 0.4, noise=0.05, seed=4)
+    topo = get_topology(V, F, dtype=torch.float64, cache=False)
+    faces = topo.faces.numpy()
+    for (i, j), (k, l), (f0, f1) in zip(topo.hinge_edges.numpy(), topo.hinge_opposite.numpy(), topo.hinge_faces.numpy()):
+        assert f0 != f1
+        assert sorted(faces[f0]) == sorted((i, j, k)) and sorted(faces[f1]) == sorted((i, j, l))
+        at = list(faces[f0]).index(i)
+        assert faces[f0][(at + 1) % 3] == j  # oriented as in the first face
