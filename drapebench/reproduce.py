@@ -326,8 +326,8 @@ def main(argv=None) -> int:
         if args.quick and args.archive.resolve().is_relative_to((PROJECT_ROOT / "reports").resolve()):
             parser.error(f"--quick --archive {args.archive}: quick runs are untrained 8-frame checks of the pipeline, not results, "
                          "and would enter the committed archive; leave --archive out or name a folder outside reports/")
-        if clash(root, args.archive):
-            parser.error(f"--archive {args.archive}: {clash(root, args.archive)}")
+        if why := clash(root, args.archive):
+            parser.error(f"--archive {args.archive}: {why}")
     names = [n for n in tables if n in args.tables or _needed_by(n, args.tables)]
     at = commit()
     if args.archive and args.dry_run:

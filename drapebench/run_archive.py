@@ -138,8 +138,8 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     from drapebench.staleness import known
 
-    if clash(args.runs, args.archive):
-        parser.error(f"archive {args.archive}: {clash(args.runs, args.archive)}")
+    if why := clash(args.runs, args.archive):
+        parser.error(f"archive {args.archive}: {why}")
     at = None
     if args.commit:
         at = known(args.commit) or (args.commit if "-dirty+" in args.commit else None)  # a short sha: the full one
