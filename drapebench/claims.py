@@ -389,6 +389,12 @@ def counts_line(counts: pd.Series, total: int) -> str:
 CODE_LINE = "Rows judged against the methods' code with fingerprints: "
 
 
+def _table_file(reports: Path, table: str) -> str:
+    """The file a scoreboard links for ``table``: its markdown in ``reports``, or its CSV where it has no markdown
+    (a figure's data: ``vae_fig4``)."""
+    return f"{table}.md" if (Path(reports) / f"{table}.md").exists() else f"{table}.csv"
+
+
 def render(claims: list[Claim], reports: Path, code: dict | None = None) -> str:
     """``claims.md``'s text: the scoreboard over the tables in ``reports`` and their ``_gpu`` twins, staleness
     judged against ``code`` ({impl: fingerprint}; default: the working tree's)."""
@@ -415,7 +421,7 @@ def render(claims: list[Claim], reports: Path, code: dict | None = None) -> str:
             g = evaluate(c, gpu, fl, code)
             gpu_cell = f"{g.verdict}: {g.ours}"
         src = tables.get(c.table)
-        link = f"[{c.table}]({c.table}.md)" if src else (f"{c.table} (not committed)" if c.table else "–")
+        link = f"[{c.table}]({_table_file(reports, c.table)})" if src else (f"{c.table} (not committed)" if c.table else "–")
         if src and len(src.commits) > 1:
             link += f", rows from {len(src.commits)} commits"
         cmd = f"<br>`{table_specs[c.table].command()}`" if c.table in table_specs else ""

@@ -239,6 +239,14 @@ def test_committed_claims_md_is_what_the_committed_csvs_give():
         "the methods' code changed since reports/claims.md was judged: run `python -m drapebench.report --claims`"  # fmt: skip
 
 
+def test_every_table_the_scoreboard_links_exists():
+    import re
+
+    links = set(re.findall(r"\]\(([^)#:]+)\)", (REPORTS / "claims.md").read_text()))
+    assert links, "reports/claims.md links no table"
+    assert not sorted(link for link in links if not (REPORTS / link).exists()), "reports/claims.md links a file that does not exist"
+
+
 def test_the_readme_status_is_the_committed_scoreboard_s_counts(tmp_path):
     claims_md = (REPORTS / "claims.md").read_text()
     assert status_block(claims_md) in (ROOT / "README.md").read_text(), \

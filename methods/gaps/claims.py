@@ -64,8 +64,9 @@ CLAIMS = [
           "order", metrics=("ms/frame",), greater=[("ncs_like", "gaps")],
           notes=("snug_like has no collision post-processing, which is what makes SNUG's 23.7 ms; only GAPS < NCS is tested.",), **T4, control_why=RUNTIME),
     Claim("gaps_t4_train_time", "GAPS Table 4", "GAPS trains in 1-8 h, SNUG and NCS in 1-24 h", "1-8 h vs 1-24 h (8 V100)", "untested",
-          table="gaps_table4", why="the CPU budget stops every method at the same step count, and its converged_s column shows "
-          "no model converged within it; needs train=paper on a GPU"),
+          table="gaps_table4", why="the CPU budget stops every method at the same step count, so train_s prices a step, not the "
+          "paper's run to convergence (converged_s reads where each CPU loss flattened, to a stated criterion); needs "
+          "train=paper on a GPU"),
 ]
 
 MORE_CLAIMS = [
@@ -80,8 +81,8 @@ MORE_CLAIMS = [
           "penetrates the body more than GAPS's", "\"SNUG (top) shows significant garment penetration while GAPS (bottom) shows "
           "remarkable performance\" (no number)", "order", metrics=("ε_c (%)",), greater=[("snug_like", "gaps")],
           groups=("tshirt", "skirt", "dress"), control=("lbs",),
-          notes=("runtime_vs_error's two body shapes (b0=1,b1=-1 and b0=-1,b1=1.5, outside the training range of the "
-                 "CPU budget) averaged per garment; the paper's Fig. 6 is a picture of diverse bodies.",), **RVE),
+          notes=("runtime_vs_error's two body shapes (b0=1,b1=-1 and b0=-1,b1=1.5: shapes no training sequence holds, "
+                 "though inside the U(-2, 2) range its training shapes are drawn from) averaged per garment; the paper's Fig. 6 is a picture of diverse bodies.",), **RVE),
     Claim("gaps_f8_rbf_skinning_loose", "GAPS Figs. 8-9", "on loose garments the RBF body-participation skinning stretches "
           "the template less than nearest-vertex skinning (the untrained skinnings, before any training)",
           "\"The closest vertex based skinning shows large discontinuities between the legs\" (Fig. 8); RBF skinning "
