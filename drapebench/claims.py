@@ -391,7 +391,7 @@ CODE_LINE = "Rows judged against the methods' code with fingerprints: "
 
 def _table_file(reports: Path, table: str) -> str:
     """The file a scoreboard links for ``table``: its markdown in ``reports``, or its CSV where it has no markdown
-    (a figure's data: ``vae_fig4``)."""
+    (a figure's data)."""
     return f"{table}.md" if (Path(reports) / f"{table}.md").exists() else f"{table}.csv"
 
 
