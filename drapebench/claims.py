@@ -83,18 +83,25 @@ _COMMIT = r"[0-9a-f]{4,40}(?:-dirty)?"  # a commit as the tables write it (repor
 _TRAINED = rf"(?:{_COMMIT}|unrecorded|unknown)"  # a commit that trained a model, as report.trained_note writes it
 
 
+def _provenance(comments: list) -> tuple[list, dict, dict]:
+    """(the commits of a table's provenance line, {row: its commits} from its mixed-commits note, {row: the commits
+    that trained its models} from its trained-at note) of a table's ``#`` lines."""
+    commits = re.search(rf"commit\(?s?\)? ({_COMMIT}(?:, {_COMMIT})*)(?: on | \(|\.|$)", comments[0]) if comments else None
+    commits = [c.strip() for c in commits.group(1).split(",")] if commits else []
+    mixed = next((c for c in comments if c.startswith("**Mixed commits**")), "")
+    row_commits = {m.group(1): [c.strip() for c in m.group(2).split(",")]
+                   for m in re.finditer(rf"([\w.-]+) ({_COMMIT}(?:, {_COMMIT})*)(?=;|\.$)", mixed.split(": ", 1)[-1])}  # fmt: skip
+    cached = next((c for c in comments if c.startswith("**Models trained at**")), "")
+    trained_at = {m.group(1): [c.strip() for c in m.group(2).split(",")]
+                  for m in re.finditer(rf"([\w.-]+) ({_TRAINED}(?:, {_TRAINED})*)(?=;|\.$)", cached.rsplit(": ", 1)[-1])}  # fmt: skip
+    return commits, row_commits, trained_at
+
+
 def read_table(path: Path) -> Table:
     """A table's CSV (``#`` provenance lines, a one- or two-row header, a checksum footer) as a :class:`Table`;
     raises :class:`drapebench.table_file.TableError` naming the file and line of anything it cannot trust."""
     f = read_csv(path)
-    commits = re.search(rf"commit\(?s?\)? ({_COMMIT}(?:, {_COMMIT})*)(?: on |\.|$)", f.comments[0]) if f.comments else None
-    commits = [c.strip() for c in commits.group(1).split(",")] if commits else []
-    mixed = next((c for c in f.comments if c.startswith("**Mixed commits**")), "")
-    row_commits = {m.group(1): [c.strip() for c in m.group(2).split(",")]
-                   for m in re.finditer(rf"([\w.-]+) ({_COMMIT}(?:, {_COMMIT})*)(?=;|\.$)", mixed.split(": ", 1)[-1])}  # fmt: skip
-    cached = next((c for c in f.comments if c.startswith("**Models trained at**")), "")
-    trained_at = {m.group(1): [c.strip() for c in m.group(2).split(",")]
-                  for m in re.finditer(rf"([\w.-]+) ({_TRAINED}(?:, {_TRAINED})*)(?=;|\.$)", cached.rsplit(": ", 1)[-1])}  # fmt: skip
+    commits, row_commits, trained_at = _provenance(f.comments)
     metrics = f.header[-1]
     groups = f.header[0] if len(f.header) == 2 else [""] * len(metrics)
     cells = {(cells[0], groups[j], metrics[j]): cells[j] for _, cells in f.rows for j in range(1, len(cells))}
@@ -373,6 +380,33 @@ def claim_tables(claims: list, reports: Path) -> dict:
     return {p.stem: read_table(p) for p in paths}
 
 
+def stale_tables(reports: Path, code: dict | None = None) -> dict:
+    """{table: {row: why}} for every committed table in ``reports`` (its ``*.csv``, claimed or not) that has stale
+    rows (:func:`drapebench.staleness.stale_rows`, judged against ``code`` as the claims are); a table whose rows are
+    runs (names in its cells) is read by its first column. Raises :class:`drapebench.table_file.TableError` on a
+    damaged table."""
+    out = {}
+    for path in sorted(Path(reports).glob("*.csv")):
+        f = read_csv(path, check_cells=False)
+        commits, row_commits, trained_at = _provenance(f.comments)
+        rows = sorted({cells[0] for _, cells in f.rows})
+        stale = stale_rows(rows, row_commits, commits, code, owner(path.stem), trained_at)
+        if stale:
+            out[path.stem] = stale
+    return out
+
+
+def _stale_tables_text(stale: dict) -> list:
+    """Markdown lines naming each table with stale rows, its rows grouped by why."""
+    lines = []
+    for table, rows in stale.items():
+        by_why: dict = {}
+        for row, why in rows.items():
+            by_why.setdefault(why, []).append(row)
+        lines.append(f"- {table}: " + "; ".join(f"{', '.join(r)} ({why})" for why, r in by_why.items()) + ".")
+    return lines
+
+
 def _judge(claims: list, reports: Path, code: dict | None):
     tables = claim_tables(claims, reports)
     floors = resolution_floors(tables)
@@ -437,6 +471,10 @@ def render(claims: list[Claim], reports: Path, code: dict | None = None) -> str:
               CODE_LINE + ", ".join(f"{k} {v}" for k, v in sorted(code.items())) + " (drapebench.staleness).", ""]  # fmt: skip
     if notes:
         lines += ["Notes:", *notes, ""]
+    stale = stale_tables(reports, code)
+    lines += ["Tables with stale rows (every committed table, claimed or not, judged as the claims are: a row from "
+              "another commit than its table's, or made or trained by method code or configs that have changed "
+              "since)" + (":" if stale else ": none."), *_stale_tables_text(stale), ""]
     return "\n".join(lines)
 
 

@@ -89,9 +89,10 @@ class CsvTable:
     rows: list
 
 
-def read_csv(path: Path, key_columns: int = 1) -> CsvTable:
+def read_csv(path: Path, key_columns: int = 1, check_cells: bool = True) -> CsvTable:
     """Read table ``path`` strictly (checksum, widths, unique row keys: the first ``key_columns`` cells, the other
-    cells a number or a placeholder); raises :class:`TableError` naming the file and the line."""
+    cells a number or a placeholder); raises :class:`TableError` naming the file and the line. ``check_cells=False``
+    checks the checksum and widths only: a table with a row per run, whose cells hold names and whose key repeats."""
     path = Path(path)
     body = verified_text(path)
     comments, header, rows = [], [], []
@@ -110,14 +111,16 @@ def read_csv(path: Path, key_columns: int = 1) -> CsvTable:
         raise TableError(f"{path}: no header line: the file holds no table")
     width = len(header[0])
     seen = {}
-    for line, cells in rows:
-        if len(cells) != width:
-            raise TableError(f"{path}: line {line}: {len(cells)} cells where the header has {width}")
-        key = ",".join(cells[:key_columns])
+    for line, row in rows:
+        if len(row) != width:
+            raise TableError(f"{path}: line {line}: {len(row)} cells where the header has {width}")
+        if not check_cells:
+            continue
+        key = ",".join(row[:key_columns])
         if key in seen:
             raise TableError(f"{path}: line {line}: row {key!r} repeats line {seen[key]}")
         seen[key] = line
-        for j, cell in enumerate(cells[key_columns:], start=key_columns):
+        for j, cell in enumerate(row[key_columns:], start=key_columns):
             if cell not in PLACEHOLDERS and not NUMBER.match(cell):
                 raise TableError(f"{path}: line {line}: column {j + 1} ({header[-1][j]!r}) holds {cell!r}, neither a number "
                                  f"nor one of {', '.join(PLACEHOLDERS)}")  # fmt: skip

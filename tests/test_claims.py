@@ -159,6 +159,26 @@ def test_a_row_from_another_commit_or_changed_code_makes_the_claim_stale(tmp_pat
     assert j.verdict == "stale: holds, one seed" and "methods/vae" in j.stale["tshirt"]
 
 
+def test_every_committed_table_with_stale_rows_is_listed_claimed_or_not(tmp_path):
+    """The scoreboard lists each table of the folder with stale rows, a table whose rows are runs (names in its
+    cells, a repeated key) included, and says "none" when no row is stale."""
+    from drapebench.claims import stale_tables
+
+    head = _git("rev-parse", "HEAD")
+    _csv(tmp_path, {"lbs": ["1", "2"]}, name="fresh")
+    runs = ["# Produced by `x` from runs at commit(s) 0123456789abcdef0123456789abcdef01234567 (a device's copy) on y.",
+            "method,garment,max_strain", "lbs,tshirt,5", "lbs,skirt,6"]
+    (tmp_path / "per_run.csv").write_text(seal("\n".join(runs) + "\n"))
+    stale = stale_tables(tmp_path)
+    assert list(stale) == ["per_run"] and "not in this repository's history" in stale["per_run"]["lbs"]
+    assert list(stale_tables(tmp_path, code={"lbs": "000000000000"})) == ["fresh", "per_run"]
+    (tmp_path / "per_run.csv").unlink()
+    text = render([], tmp_path, current_code())
+    assert "Tables with stale rows" in text and text.rstrip().endswith("since): none.")
+    text = render([], tmp_path, {**current_code(), "lbs": "000000000000"})
+    assert f"- fresh: lbs (methods/lbs or its configs changed since {head[:7]})." in text
+
+
 def test_a_model_trained_by_older_code_makes_the_claim_stale(tmp_path, monkeypatch):
     """A cached model is keyed by its configuration, not its code: a row run at the table's commit whose model was
     trained by another version of its method's code is stale; one trained by the same code, or unrecorded, is not."""
