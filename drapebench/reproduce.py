@@ -5,7 +5,8 @@ For each table (:func:`drapebench.table_specs.specs`, in their order) it expands
 experiment's ``hydra.sweeper.params`` and the sweep's overrides, as Hydra's basic sweeper would), runs each one
 that has not finished (a run folder ``<root>/<table>/<sweep>/<job>_<hash of its overrides>`` holding
 ``metrics.json`` or ``failed.json`` and a ``reproduce.json`` with the same overrides and commit is finished: a
-stopped and restarted command goes on where it stopped), printing its progress and an estimate of what is left,
+stopped and restarted command goes on where it stopped; stopping it stops its runs, and a run that another process
+is still running is not started twice), printing its progress and an estimate of what is left,
 then writes the table from those runs and, at the end, ``claims.md`` over the tables written. The runs record
 ``viz=none`` (no recordings: a table needs none).
 
@@ -25,12 +26,15 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import fcntl
 import hashlib
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
+import threading
 import time
 from dataclasses import dataclass
 from functools import lru_cache
@@ -150,24 +154,65 @@ def finished(job: Job, at: str) -> bool:
     return done.get("overrides") == list(job.overrides) and done.get("commit") == at
 
 
+BUSY = 75  # run_job's status for a run another process is running now (its folder left alone)
+_LIVE: set = set()  # the run.py processes started here and not yet reaped: stopped with this command
+_LIVE_LOCK = threading.RLock()  # re-entrant: the signal handler may run in the thread that holds it
+_STOPPING = threading.Event()  # set by a signal: no further run starts
+
+
+def stop_runs_on_signals() -> None:
+    """On SIGTERM, SIGHUP or SIGINT: start no further run, terminate the runs started (they would go on as orphans,
+    beside a restarted command's copies of them, in the same folders) and exit with 128 + the signal's number. A run
+    stopped so resumes its training from its last saved state when the command is run again."""
+
+    def stop(signum, frame):
+        _STOPPING.set()
+        with _LIVE_LOCK:
+            for proc in list(_LIVE):
+                with contextlib.suppress(ProcessLookupError):
+                    proc.terminate()
+        raise SystemExit(128 + signum)
+
+    for sig in (signal.SIGTERM, signal.SIGHUP, signal.SIGINT):
+        signal.signal(sig, stop)
+
+
 def run_job(job: Job, at: str, cpus: set | None = None) -> int:
     """Run ``job`` in a fresh folder (an unfinished one is removed first) and stamp it; returns run.py's status.
-    ``cpus``: the CPU cores its process is pinned to (None: this process's)."""
-    if job.dir.exists():
-        shutil.rmtree(job.dir)
+    ``cpus``: the CPU cores its process is pinned to (None: this process's). The run holds a lock
+    (``<folder>.lock``, inherited by its process, so an orphaned run keeps it): a run that another process holds is
+    not started again and its folder is left alone (status :data:`BUSY`); nothing starts once the command is
+    stopping (:func:`stop_runs_on_signals`)."""
+    if _STOPPING.is_set():
+        return BUSY
     job.dir.parent.mkdir(parents=True, exist_ok=True)
-    argv = [sys.executable, str(PROJECT_ROOT / "run.py"), f"experiment={job.sweep.experiment}", *job.overrides, *RUN,
-            f"hydra.run.dir={job.dir}"]  # fmt: skip
-    log = job.dir.parent / f"{job.dir.name}.log"
-    with open(log, "w") as f:
-        proc = subprocess.Popen(argv, cwd=PROJECT_ROOT, stdout=f, stderr=subprocess.STDOUT, env=dict(os.environ, DRAPEBENCH_PROGRESS="0"))
+    with open(job.dir.parent / f"{job.dir.name}.lock", "a") as lock:
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return BUSY
+        if job.dir.exists():
+            shutil.rmtree(job.dir)
+        argv = [sys.executable, str(PROJECT_ROOT / "run.py"), f"experiment={job.sweep.experiment}", *job.overrides, *RUN,
+                f"hydra.run.dir={job.dir}"]  # fmt: skip
+        log = job.dir.parent / f"{job.dir.name}.log"
+        with open(log, "w") as f, _LIVE_LOCK:
+            if _STOPPING.is_set():
+                return BUSY
+            proc = subprocess.Popen(argv, cwd=PROJECT_ROOT, stdout=f, stderr=subprocess.STDOUT, pass_fds=(lock.fileno(),),
+                                    env=dict(os.environ, DRAPEBENCH_PROGRESS="0"))  # fmt: skip
+            _LIVE.add(proc)
         if cpus is not None:  # pinned right after exec, while the interpreter starts and before it makes a thread (not by
             with contextlib.suppress(ProcessLookupError):  # preexec_fn: unsafe beside the other workers' threads); gone: nothing to pin
                 os.sched_setaffinity(proc.pid, cpus)
-        code = proc.wait()
-    if (job.dir / "metrics.json").exists() or (job.dir / "failed.json").exists():
-        with atomic_write(job.dir / "reproduce.json", "w") as f:
-            json.dump({"overrides": list(job.overrides), "commit": at, "experiment": job.sweep.experiment}, f)
+        try:
+            code = proc.wait()
+        finally:
+            with _LIVE_LOCK:
+                _LIVE.discard(proc)
+        if (job.dir / "metrics.json").exists() or (job.dir / "failed.json").exists():
+            with atomic_write(job.dir / "reproduce.json", "w") as f:
+                json.dump({"overrides": list(job.overrides), "commit": at, "experiment": job.sweep.experiment}, f)
     return code
 
 
@@ -209,7 +254,6 @@ def run_all(jobs: list, at: str, say=print, workers: int = 1, runner=run_job) ->
     far); ``workers`` > 1 runs that many at once, each worker pinned to its cores (:func:`worker_cpus`) and taking
     the next group of runs that share a model (:func:`drapebench.reproduce_cost.groups`) in order. Returns the jobs
     that did not finish."""
-    import threading
     from concurrent.futures import ThreadPoolExecutor
 
     from drapebench.reproduce_cost import grouped
@@ -226,6 +270,9 @@ def run_all(jobs: list, at: str, say=print, workers: int = 1, runner=run_job) ->
     failed, lock, counter, took, waiting = [], threading.Lock(), iter(range(1, len(todo) + 1)), {}, list(todo)
 
     def one(job: Job, cpus) -> None:
+        if _STOPPING.is_set():  # stopped by a signal: the runs left are not started
+            failed.append(job)
+            return
         with lock:
             i = next(counter)
             say(f"[{i}/{len(todo)}] {job.table}: {job.sweep.experiment} {' '.join(job.overrides)}{time_left(took, waiting, trains, workers)}")
@@ -233,6 +280,11 @@ def run_all(jobs: list, at: str, say=print, workers: int = 1, runner=run_job) ->
         t0 = time.monotonic()
         code = runner(job, at, cpus)
         with lock:
+            if code == BUSY:
+                failed.append(job)
+                if not _STOPPING.is_set():
+                    say(f"    not started: another process is running it now (it holds {job.dir.parent / (job.dir.name + '.lock')})")
+                return
             took[job.dir] = (time.monotonic() - t0, job.dir in trains)
             if code != 0 and not finished(job, at):
                 failed.append(job)
@@ -349,6 +401,7 @@ def main(argv=None) -> int:
               "the trainings of methods trained on reference drapes simulate first:")
         print("\n".join(summary(todo)))
         return 0
+    stop_runs_on_signals()
     failed = run_all(jobs, at, workers=args.jobs, runner=_archiving(args.archive, root) if args.archive else run_job)
     paths = write_tables([n for n in names if n in args.tables], root, out, args.quick, at=at)
     from drapebench.claims import write_claims

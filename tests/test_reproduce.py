@@ -398,3 +398,67 @@ def test_a_run_that_recorded_its_failure_has_finished(tmp_path):
 def test_a_per_garment_method_needs_a_training_per_garment():
     counts = tally(_jobs(Sweep("gaps_table3", ("method=gaps", "motion.betas=[0.0]", "seed=0", "garment=tshirt,skirt"))))[0]
     assert {m: (r["runs"], len(r["trainings"])) for m, r in counts.items()} == {"gaps": (2, 2)}
+
+
+def test_a_run_another_process_holds_is_not_started_again_and_its_folder_is_kept(tmp_path):
+    """A run whose lock another process holds (an orphan of a stopped command, or a second command over the same
+    runs folder) is not started a second time, and the folder it writes into is not removed under it."""
+    import fcntl
+
+    from drapebench.reproduce import BUSY, run_job
+
+    job = Job("t", Sweep("x"), ("k=1",), tmp_path / "runs" / "0")
+    job.dir.mkdir(parents=True)
+    (job.dir / "losses.csv").write_text("step\n1\n")
+    with open(tmp_path / "runs" / "0.lock", "a") as held:
+        fcntl.flock(held, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        assert run_job(job, "c") == BUSY
+    assert (job.dir / "losses.csv").read_text() == "step\n1\n" and not (tmp_path / "runs" / "0.log").exists()
+
+
+STOPPED_COMMAND = """
+import sys, time
+from pathlib import Path
+import drapebench.reproduce as reproduce
+import drapebench.reproduce_cost as cost
+from drapebench.table_specs import Sweep
+
+root = Path(sys.argv[1])
+reproduce.PROJECT_ROOT = root  # run.py here is a stand-in that notes its pid and sleeps
+cost.grouped = lambda todo: ([[j] for j in todo], set(), {})
+jobs = [reproduce.Job("t", Sweep("x"), (f"k={i}",), root / "runs" / str(i)) for i in range(3)]
+reproduce.stop_runs_on_signals()
+reproduce.run_all(jobs, "c", say=lambda s: None, workers=2)
+"""
+
+
+def test_a_stopped_command_stops_its_runs_and_starts_no_other(tmp_path):
+    """SIGTERM to the command terminates the runs it started (left running, they would write beside a restarted
+    command's copies of them, in the same folders) and starts none of the runs left; it exits 128 + 15."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    (tmp_path / "run.py").write_text("import os, pathlib, sys, time\n"
+                                     "pathlib.Path(sys.argv[0]).parent.joinpath('pids').open('a').write(f'{os.getpid()}\\n')\n"
+                                     "time.sleep(120)\n")  # fmt: skip
+    command = subprocess.Popen([sys.executable, "-c", STOPPED_COMMAND, str(tmp_path)], cwd=ROOT)
+    pids_file, deadline = tmp_path / "pids", time.monotonic() + 60
+    while (not pids_file.exists() or len(pids_file.read_text().split()) < 2) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    pids = [int(p) for p in pids_file.read_text().split()]
+    assert len(pids) == 2  # two workers, one run each
+    command.send_signal(signal.SIGTERM)
+    assert command.wait(timeout=30) == 128 + signal.SIGTERM
+
+    def alive(pid: int) -> bool:
+        try:
+            state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+        except (FileNotFoundError, ProcessLookupError):
+            return False
+        return state != "Z"  # a zombie has ended
+
+    time.sleep(0.5)
+    assert not [p for p in pids if alive(p)], "the command's runs outlived it"
+    assert len(pids_file.read_text().split()) == 2  # the third run never started
