@@ -270,10 +270,10 @@ def run_all(jobs: list, at: str, say=print, workers: int = 1, runner=run_job) ->
     failed, lock, counter, took, waiting = [], threading.Lock(), iter(range(1, len(todo) + 1)), {}, list(todo)
 
     def one(job: Job, cpus) -> None:
-        if _STOPPING.is_set():  # stopped by a signal: the runs left are not started
-            failed.append(job)
-            return
         with lock:
+            if _STOPPING.is_set():  # stopped by a signal: the runs left are not started
+                failed.append(job)
+                return
             i = next(counter)
             say(f"[{i}/{len(todo)}] {job.table}: {job.sweep.experiment} {' '.join(job.overrides)}{time_left(took, waiting, trains, workers)}")
             waiting.remove(job)  # counted above: the run starting now is left too
