@@ -19,7 +19,7 @@ import pandas as pd
 
 from drapebench.cache import PROJECT_ROOT, atomic_write
 from drapebench.claim import Claim
-from drapebench.staleness import current_code, stale_rows
+from drapebench.staleness import current_code, stale_rows, track_of
 from drapebench.table_file import read_csv
 from drapebench.table_specs import owner, specs
 
@@ -280,7 +280,7 @@ class Judgement:
 
 def evaluate(claim: Claim, table: Table | None, floors: dict | None = None, code: dict | None = None) -> Judgement:
     """The :class:`Judgement` of ``claim`` on ``table`` by :data:`RULES`; ``floors``: {(table, metric label) or
-    metric label: floor} (:func:`floor_of`); ``code``: {impl: fingerprint} the rows' code is judged against (default: the working
+    metric label: floor} (:func:`floor_of`); ``code``: {impl or impl@track: fingerprint, drapebench.staleness.code_key} the rows' code is judged against (default: the working
     tree's)."""
     if claim.kind not in KINDS:
         raise ValueError(f"claim {claim.id}: unknown kind {claim.kind!r}; kinds: {', '.join(KINDS)}")
@@ -320,7 +320,8 @@ def evaluate(claim: Claim, table: Table | None, floors: dict | None = None, code
         verdict = "inside the spread"
     controls = {r for c in claim.control for r in ([c] if isinstance(c, str) else c.values())}
     rows = {x for c in found for x in (c.hi, c.lo) if x != "bound"} | controls
-    stale = stale_rows(sorted(rows & set(table.rows())), table.row_commits, table.commits, code, owner(table.name), table.trained_at)
+    stale = stale_rows(sorted(rows & set(table.rows())), table.row_commits, table.commits, code, owner(table.name), table.trained_at,
+                       track_of(table.name))  # fmt: skip
     if stale:  # it can hold, never reproduce
         verdict = f"stale: {'holds' if verdict == 'reproduced' else verdict}"
     if not claim.comparable:
@@ -390,7 +391,7 @@ def stale_tables(reports: Path, code: dict | None = None) -> dict:
         f = read_csv(path, check_cells=False)
         commits, row_commits, trained_at = _provenance(f.comments)
         rows = sorted({cells[0] for _, cells in f.rows})
-        stale = stale_rows(rows, row_commits, commits, code, owner(path.stem), trained_at)
+        stale = stale_rows(rows, row_commits, commits, code, owner(path.stem), trained_at, track_of(path.stem))
         if stale:
             out[path.stem] = stale
     return out
@@ -431,7 +432,7 @@ def _table_file(reports: Path, table: str) -> str:
 
 def render(claims: list[Claim], reports: Path, code: dict | None = None) -> str:
     """``claims.md``'s text: the scoreboard over the tables in ``reports`` and their ``_gpu`` twins, staleness
-    judged against ``code`` ({impl: fingerprint}; default: the working tree's)."""
+    judged against ``code`` ({impl or impl@track: fingerprint}; default: the working tree's)."""
     code = code or current_code()
     judged, counts, tables, floors = _judge(claims, reports, code)
     lines = [
@@ -487,7 +488,7 @@ def _floors_text(floors: dict) -> str:
 
 
 def recorded_code(text: str) -> dict:
-    """The {impl: fingerprint} a claims.md text was judged against (its :data:`CODE_LINE`)."""
+    """The {impl or impl@track: fingerprint} a claims.md text was judged against (its :data:`CODE_LINE`)."""
     line = next((x for x in text.splitlines() if x.startswith(CODE_LINE)), None)
     if line is None:
         raise ValueError(f"no line starting {CODE_LINE!r}: regenerate claims.md")

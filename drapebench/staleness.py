@@ -3,12 +3,15 @@ that has changed since, or reading a cached model that such code trained (a mode
 not its code: the table names the commit that trained it, ``report.trained_note``).
 
 A method's code is its implementation folder ``methods/<impl>/`` (its ``.py`` files but the declarations of what
-it reports, :func:`makes_numbers`) and its configs
-(``conf/method/<name>.yaml`` of every config whose implementation it is, ``conf/method/<impl>_*/``, and for a
-method that trains, the training and reference-set presets ``conf/train/``, ``conf/data/``), compared
-by :func:`fingerprint`: Python without comments and docstrings (its syntax tree), YAML as the data it loads, so a
-reflowed docstring changes nothing and a changed default does. Reads git history; a commit the repository does not
-know (or a run on uncommitted changes, ``-dirty``) cannot be checked and counts as stale.
+it reports, :func:`makes_numbers`) and its configs (``conf/method/<name>.yaml`` of every config whose implementation
+it is), and, for a table, the presets of the table's track (:func:`track_of`: ``cpu`` for the committed CPU tables,
+made with ``train=cpu`` and ``data=cpu``; ``paper`` for a ``_gpu`` table): the budget files named like the track in
+``conf/method/<impl>_*/`` and, for a method that trains, ``conf/train/<track>.yaml`` and ``conf/data/<track>.yaml``.
+So a change to the GPU presets leaves the CPU tables' rows current, and the other way round. A cached model's own
+stored code (:func:`code_of`) leaves the presets out: its cache key holds the resolved presets it trained with.
+Compared by :func:`fingerprint`: Python without comments and docstrings (its syntax tree), YAML as the data it loads,
+so a reflowed docstring changes nothing and a changed default does. Reads git history; a commit the repository does
+not know (or a run on uncommitted changes, ``-dirty``) cannot be checked and counts as stale.
 """
 
 from __future__ import annotations
@@ -28,6 +31,19 @@ from drapebench.plugins import DECLARATIONS
 
 METHOD_CONF = "conf/method"
 TRAINING_CONF = ("conf/train", "conf/data")  # the training and reference-set presets: configuration of a method that trains
+TRACKS = ("cpu", "paper")  # the preset names the committed tables are made with: CPU tables and _gpu tables
+
+
+def track_of(table: str) -> str:
+    """The presets a committed table's runs use: "paper" for a ``_gpu`` table (``train=paper``, ``data=paper``), "cpu"
+    for the others (their experiments' ``train=cpu``, ``data=cpu``)."""
+    return "paper" if table.endswith("_gpu") else "cpu"
+
+
+def code_key(impl: str, track: str) -> str:
+    """The key of ``impl``'s fingerprint on ``track`` in a {key: fingerprint} code dict (:func:`current_code`): the
+    implementation's name for the CPU track, ``<impl>@<track>`` for another."""
+    return impl if track == "cpu" else f"{impl}@{track}"
 
 
 def _git(*args: str) -> subprocess.CompletedProcess:
@@ -88,16 +104,18 @@ def implementation(row: str) -> str | None:
 
 
 @lru_cache(maxsize=None)
-def code_files(impl: str) -> tuple:
-    """The config files (repository paths) of today's tree that belong to ``impl``: every method config whose
-    implementation it is and its budget folders (``conf/method/<impl>_*/``), and for a method that trains
-    (:func:`learns`) the training and reference-set presets (``conf/train/``, ``conf/data/``); its ``.py`` files
-    are listed per commit by :func:`fingerprint`."""
+def code_files(impl: str, track: str | None = None) -> tuple:
+    """The config files (repository paths) that belong to ``impl``: every method config of today's tree whose
+    implementation it is, and with a ``track`` the presets named like it: ``<track>.yaml`` in each of its budget
+    folders (``conf/method/<impl>_*/``) and, for a method that trains (:func:`learns`), in the training and
+    reference-set presets (``conf/train/``, ``conf/data/``), listed whether or not the file exists (a preset added or
+    removed changes the fingerprint); its ``.py`` files are listed per commit by :func:`fingerprint`."""
     conf = PROJECT_ROOT / METHOD_CONF
     files = [f"{METHOD_CONF}/{p.name}" for p in sorted(conf.glob("*.yaml")) if _conf_impl(p.stem) == impl]
-    files += [str(p.relative_to(PROJECT_ROOT)) for p in sorted(conf.glob(f"{impl}_*/*.yaml"))]
-    if learns(impl):
-        files += [str(p.relative_to(PROJECT_ROOT)) for d in TRAINING_CONF for p in sorted((PROJECT_ROOT / d).glob("*.yaml"))]
+    if track is not None:
+        files += [f"{METHOD_CONF}/{d.name}/{track}.yaml" for d in sorted(conf.glob(f"{impl}_*")) if d.is_dir()]
+        if learns(impl):
+            files += [f"{d}/{track}.yaml" for d in TRAINING_CONF]
     return tuple(files)
 
 
@@ -140,9 +158,9 @@ def makes_numbers(path: str) -> bool:
 
 
 @lru_cache(maxsize=None)
-def fingerprint(impl: str, commit: str | None = None) -> str:
+def fingerprint(impl: str, commit: str | None = None, track: str | None = None) -> str:
     """A short hash of ``impl``'s code (see the module docstring) at ``commit`` (full hash), or in the working tree
-    for None."""
+    for None, with the presets of ``track`` (None: none, a cached model's code, :func:`code_of`)."""
     if commit is None:
         listed = [str(p.relative_to(PROJECT_ROOT)) for p in sorted((PROJECT_ROOT / "methods" / impl).rglob("*.py"))]
         paths = [p for p in listed if makes_numbers(p)]
@@ -152,18 +170,18 @@ def fingerprint(impl: str, commit: str | None = None) -> str:
         paths = sorted(p for p in listed if p.endswith(".py") and makes_numbers(p))
         read = lambda p: (lambda r: r.stdout if r.returncode == 0 else None)(_git("show", f"{commit}:{p}"))  # noqa: E731
     h = hashlib.sha256()
-    for p in [*paths, *code_files(impl)]:
+    for p in [*paths, *code_files(impl, track)]:
         text = read(p)
         h.update(f"{p}\0{'absent' if text is None else _normalised(p, text)}\0".encode())
     return h.hexdigest()[:12]
 
 
 def stale_rows(rows, row_commits: dict, table_commits, code: dict | None = None, owner: str | None = None,
-               trained_at: dict | None = None) -> dict:  # fmt: skip
+               trained_at: dict | None = None, track: str = "cpu") -> dict:  # fmt: skip
     """{row: why} for the rows of ``rows`` that are stale: from another commit than the newest of
     ``table_commits``, from a commit git does not know, or run (or their models trained) by code whose
-    :func:`fingerprint` differs from ``code`` ({impl: fingerprint}, the code the verdicts are judged against;
-    default: the working tree's). ``row_commits``: {row: [commits]}; a row missing from it ran at the table's
+    :func:`fingerprint` on ``track`` (the table's, :func:`track_of`) differs from ``code`` ({:func:`code_key`:
+    fingerprint}, the code the verdicts are judged against; default: the working tree's). ``row_commits``: {row: [commits]}; a row missing from it ran at the table's
     commits. ``owner``: the implementation of the rows that name no method config (a benchmark's garment rows;
     :func:`table_specs.owner`). ``trained_at``: {method: [commits]}, those whose code trained the method's cached
     models where they are not its runs' commit (a garment row reads every method of ``owner``; "unrecorded", a
@@ -182,11 +200,16 @@ def stale_rows(rows, row_commits: dict, table_commits, code: dict | None = None,
             out[row] = "the table's commits are not on one line of history"
         elif any(c != table_commit for c in full):
             out[row] = f"from {', '.join(c[:7] for c in full if c != table_commit)}, not the table's {table_commit[:7]}"
-        elif impl is not None and fingerprint(impl, full[0]) != (code or {}).get(impl, fingerprint(impl)):
+        elif impl is not None and fingerprint(impl, full[0], track) != _judged(code, impl, track):
             out[row] = f"methods/{impl} or its configs changed since {full[0][:7]}"
-        elif impl is not None and (why := _trained_by_other_code(impl, _trained(row, impl, trained_at or {}), code)):
+        elif impl is not None and (why := _trained_by_other_code(impl, _trained(row, impl, trained_at or {}), code, track)):
             out[row] = why
     return out
+
+
+def _judged(code: dict | None, impl: str, track: str) -> str:
+    """The fingerprint ``impl``'s rows on ``track`` are judged against: ``code``'s entry, else the working tree's."""
+    return (code or {}).get(code_key(impl, track)) or fingerprint(impl, None, track)
 
 
 def _trained(row: str, impl: str, trained_at: dict) -> list:
@@ -197,15 +220,16 @@ def _trained(row: str, impl: str, trained_at: dict) -> list:
     return [c for method, commits in trained_at.items() if implementation(method) == impl for c in commits]
 
 
-def _trained_by_other_code(impl: str, trained_at: list, code: dict | None) -> str | None:
-    """Why models trained at the commits ``trained_at`` are not those of ``code``'s methods/<impl> (None if they are)."""
+def _trained_by_other_code(impl: str, trained_at: list, code: dict | None, track: str = "cpu") -> str | None:
+    """Why models trained at the commits ``trained_at`` are not those of ``code``'s methods/<impl> with ``track``'s
+    presets (None if they are)."""
     for t in trained_at:
         if t == "unrecorded":
             continue
         full = known(t)
         if full is None:
             return f"its model was trained at {t}, a commit not in this repository's history (or uncommitted changes)"
-        if fingerprint(impl, full) != (code or {}).get(impl, fingerprint(impl)):
+        if fingerprint(impl, full, track) != _judged(code, impl, track):
             return f"its model was trained by methods/{impl} as of {full[:7]}, which has changed since"
     return None
 
@@ -223,7 +247,8 @@ def changed_since(impl: str, commit: str) -> str | None:
 
 def code_of(impl: str) -> str | None:
     """The working tree's :func:`fingerprint` of the folder behind a method config's ``impl`` (``<m>_optimum``:
-    ``methods/<m>``), stored with a model it trains; None when ``impl`` names no folder under ``methods/``."""
+    ``methods/<m>``), stored with a model it trains, without presets (the model's cache key holds those it trained
+    with); None when ``impl`` names no folder under ``methods/``."""
     folder = _folder(str(impl or ""))
     return fingerprint(folder) if folder in impls() else None
 
@@ -248,6 +273,6 @@ def impls() -> list:
 
 
 def current_code() -> dict:
-    """{impl: fingerprint} of the working tree's code of every implementation."""
-    return {impl: fingerprint(impl) for impl in impls()}
+    """{:func:`code_key`: fingerprint} of the working tree's code of every implementation on every track."""
+    return {code_key(impl, track): fingerprint(impl, None, track) for impl in impls() for track in TRACKS}
 

@@ -187,18 +187,18 @@ def test_a_model_trained_by_older_code_makes_the_claim_stale(tmp_path, monkeypat
     level = Claim("l", "P", "lbs low", "-", "level", table="t", metrics=("m",), row="lbs", bound=9, control_why="test")
     parent = _git("rev-parse", "HEAD~1")
     code = {"lbs": "now"}
-    monkeypatch.setattr(staleness, "fingerprint", lambda impl, commit=None: "then" if commit == parent else "now")
+    monkeypatch.setattr(staleness, "fingerprint", lambda impl, commit=None, track=None: "then" if commit == parent else "now")
     t = _table(tmp_path, {"lbs": ["1", "2"]}, trained=f"lbs {parent[:7]}, unrecorded")
     assert t.trained_at == {"lbs": [parent[:7], "unrecorded"]}
     j = evaluate(level, t, code=code)
     assert j.verdict == "stale: holds, one seed" and f"trained by methods/lbs as of {parent[:7]}" in j.stale["lbs"]
-    monkeypatch.setattr(staleness, "fingerprint", lambda impl, commit=None: "now")  # the same code trained it
+    monkeypatch.setattr(staleness, "fingerprint", lambda impl, commit=None, track=None: "now")  # the same code trained it
     assert evaluate(level, t, code=code).verdict == "holds, one seed"
     j = evaluate(level, _table(tmp_path, {"lbs": ["1", "2"]}, trained="lbs 0123456"), code=code)
     assert j.verdict == "stale: holds, one seed" and "trained at 0123456" in j.stale["lbs"]
     assert evaluate(level, _table(tmp_path, {"lbs": ["1", "2"]}, trained="lbs unrecorded"), code=code).verdict == "holds, one seed"
     # a benchmark's garment rows read the models of every method of the package that declares the table
-    monkeypatch.setattr(staleness, "fingerprint", lambda impl, commit=None: "then" if commit == parent else "now")
+    monkeypatch.setattr(staleness, "fingerprint", lambda impl, commit=None, track=None: "then" if commit == parent else "now")
     bench = Claim("b", "P", "tshirt fast", "-", "level", table="vae_table2", metrics=("m",), row="tshirt", bound=9, control_why="test")
     j = evaluate(bench, _table(tmp_path, {"tshirt": ["1", "2"]}, name="vae_table2", trained=f"vae {parent[:7]}"), code={"vae": "now"})
     assert j.verdict == "stale: holds, one seed" and "methods/vae as of" in j.stale["tshirt"]

@@ -221,7 +221,7 @@ def test_a_checkpoint_trained_by_since_changed_method_code_is_trained_again(tmp_
     assert torch.load(path, weights_only=False)["code"] == staleness.fingerprint("lbs")
     experiment._checkpoint(Learned(), cfg, garment, data, train_cfg)
     assert len(Learned.fits) == 1 and experiment.loadable_checkpoint(Path(path), "lbs")  # the same code: loaded
-    monkeypatch.setattr(staleness, "fingerprint", lambda impl, commit=None: "edited")  # the code changed (committed or not)
+    monkeypatch.setattr(staleness, "fingerprint", lambda impl, commit=None, track=None: "edited")  # the code changed (committed or not)
     assert not experiment.loadable_checkpoint(Path(path), "lbs")
     with caplog.at_level(logging.WARNING, logger="drapebench"):
         experiment._checkpoint(Learned(), cfg, garment, data, train_cfg)
@@ -235,7 +235,7 @@ def test_a_checkpoint_without_its_code_is_judged_by_its_commit(monkeypatch):
 
     head, old = staleness.known("HEAD"), "a" * 40
     monkeypatch.setattr(staleness, "known", lambda c: {"HEAD": head, old: old}.get(c))
-    monkeypatch.setattr(staleness, "fingerprint", lambda impl, commit=None: "old" if commit == old else "disk" if commit is None else "head")
+    monkeypatch.setattr(staleness, "fingerprint", lambda impl, commit=None, track=None: "old" if commit == old else "disk" if commit is None else "head")
     assert "as of aaaaaaa" in staleness.trained_by_changed_code("gaps", {"commit": old})
     assert staleness.trained_by_changed_code("gaps_optimum", {"commit": old}) is not None  # methods/gaps
     assert staleness.trained_by_changed_code("gaps", {"commit": "unrecorded"}) is None
@@ -249,7 +249,7 @@ def test_changed_since_compares_the_fingerprints_at_a_known_commit(monkeypatch):
 
     head, old = staleness.known("HEAD"), "a" * 40
     monkeypatch.setattr(staleness, "known", lambda c: {"HEAD": head, old: old}.get(c))
-    monkeypatch.setattr(staleness, "fingerprint", lambda impl, commit=None: "old" if commit == old else "disk" if commit is None else "head")
+    monkeypatch.setattr(staleness, "fingerprint", lambda impl, commit=None, track=None: "old" if commit == old else "disk" if commit is None else "head")
     assert staleness.changed_since("gaps", old) == old  # trained by other code than the checked-out commit's
     assert staleness.changed_since("gaps", head) is None  # the disk (an untracked file, say) differs: not a reason to retrain
     assert staleness.changed_since("gaps", "b" * 40) is None  # a commit git does not know: loaded

@@ -218,15 +218,33 @@ def test_a_method_s_declarations_are_not_part_of_its_code_fingerprint():
     assert not any(makes_numbers(f"methods/gaps/{m}.py") for m in ("metrics", "claims", "tables"))
 
 
-def test_a_training_preset_is_part_of_a_learning_method_s_code_and_not_of_a_skinning_s():
+def test_a_training_preset_is_part_of_a_learning_method_s_code_on_its_own_track_only():
     """A cached model is keyed by its configuration: a changed training or reference-set preset (conf/train,
-    conf/data) retrains it, so rows from before the change are stale for the methods that train and not for lbs."""
-    from drapebench.staleness import code_files, learns
+    conf/data) retrains it, so rows from before the change are stale for the methods that train and not for lbs;
+    only for the tables made with that preset, though (train=cpu: the CPU tables; train=paper: the _gpu ones), and
+    a cached model's own stored code leaves presets out (its key holds them)."""
+    from drapebench.staleness import code_files, learns, track_of
 
     assert learns("gaps") and learns("gensim") and learns("vae") and not learns("lbs") and not learns("pbs")
+    presets = ("conf/train/", "conf/data/")
     for impl in ("gaps", "gensim", "vae"):
-        assert {"conf/train/cpu.yaml", "conf/data/cpu.yaml"} <= set(code_files(impl))
-    assert not any(f.startswith(("conf/train/", "conf/data/")) for f in code_files("lbs") + code_files("pbs"))
+        assert {"conf/train/cpu.yaml", "conf/data/cpu.yaml"} <= set(code_files(impl, "cpu"))
+        assert not any(f.endswith("/paper.yaml") for f in code_files(impl, "cpu"))
+        assert {"conf/train/paper.yaml", "conf/data/paper.yaml"} <= set(code_files(impl, "paper"))
+        assert not any(f.startswith(presets) or f.count("/") > 2 for f in code_files(impl))  # a checkpoint's code: no presets
+    assert "conf/method/gaps_budget/cpu.yaml" in code_files("gaps", "cpu") and "conf/method/gaps_budget/long.yaml" not in code_files("gaps", "cpu")
+    assert not any(f.startswith(presets) for f in code_files("lbs", "cpu") + code_files("pbs", "paper"))
+    assert (track_of("vae_table2"), track_of("vae_table2_gpu")) == ("cpu", "paper")
+
+
+def test_a_row_is_judged_by_its_own_track_s_code(tmp_path):
+    """A _gpu table's rows are judged by the paper presets' fingerprint, a CPU table's by the cpu ones'."""
+    from drapebench.staleness import current_code, known, stale_rows
+
+    head = known("HEAD")
+    code = {**current_code(), "vae@paper": "000000000000"}  # the GPU presets changed; the CPU ones did not
+    assert stale_rows(["vae"], {}, [head], code) == {}
+    assert "methods/vae" in stale_rows(["vae"], {}, [head], code, track="paper")["vae"]
 
 
 def test_tables_written_by_a_regeneration_do_not_make_its_runs_dirty(tmp_path, monkeypatch):
