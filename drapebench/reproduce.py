@@ -154,7 +154,8 @@ def finished(job: Job, at: str) -> bool:
     return done.get("overrides") == list(job.overrides) and done.get("commit") == at
 
 
-BUSY = 75  # run_job's status for a run another process is running now (its folder left alone)
+BUSY = -1000  # run_job's status for a run it did not start (another process holds it, or the command is stopping): no exit status
+_STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP, signal.SIGINT)
 _LIVE: set = set()  # the run.py processes started here and not yet reaped: stopped with this command
 _LIVE_LOCK = threading.RLock()  # re-entrant: the signal handler may run in the thread that holds it
 _STOPPING = threading.Event()  # set by a signal: no further run starts
@@ -173,7 +174,7 @@ def stop_runs_on_signals() -> None:
                     proc.terminate()
         raise SystemExit(128 + signum)
 
-    for sig in (signal.SIGTERM, signal.SIGHUP, signal.SIGINT):
+    for sig in _STOP_SIGNALS:
         signal.signal(sig, stop)
 
 
@@ -181,8 +182,8 @@ def run_job(job: Job, at: str, cpus: set | None = None) -> int:
     """Run ``job`` in a fresh folder (an unfinished one is removed first) and stamp it; returns run.py's status.
     ``cpus``: the CPU cores its process is pinned to (None: this process's). The run holds a lock
     (``<folder>.lock``, inherited by its process, so an orphaned run keeps it): a run that another process holds is
-    not started again and its folder is left alone (status :data:`BUSY`); nothing starts once the command is
-    stopping (:func:`stop_runs_on_signals`)."""
+    not started again and its folder is left alone (status :data:`BUSY`), nor is one that finished meanwhile (status
+    0); nothing starts once the command is stopping (:func:`stop_runs_on_signals`)."""
     if _STOPPING.is_set():
         return BUSY
     job.dir.parent.mkdir(parents=True, exist_ok=True)
@@ -191,12 +192,14 @@ def run_job(job: Job, at: str, cpus: set | None = None) -> int:
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             return BUSY
+        if finished(job, at):  # another command finished it after this one listed it
+            return 0
         if job.dir.exists():
             shutil.rmtree(job.dir)
         argv = [sys.executable, str(PROJECT_ROOT / "run.py"), f"experiment={job.sweep.experiment}", *job.overrides, *RUN,
                 f"hydra.run.dir={job.dir}"]  # fmt: skip
         log = job.dir.parent / f"{job.dir.name}.log"
-        with open(log, "w") as f, _LIVE_LOCK:
+        with open(log, "w") as f, _LIVE_LOCK:  # held from the start to the listing: a stop (main thread) waits for both
             if _STOPPING.is_set():
                 return BUSY
             proc = subprocess.Popen(argv, cwd=PROJECT_ROOT, stdout=f, stderr=subprocess.STDOUT, pass_fds=(lock.fileno(),),
@@ -290,9 +293,9 @@ def run_all(jobs: list, at: str, say=print, workers: int = 1, runner=run_job) ->
                 failed.append(job)
                 say(f"    stopped without a result; its log: {job.dir.parent / (job.dir.name + '.log')}")
 
-    if workers <= 1:
-        for job in todo:
-            one(job, None)
+    if workers <= 1:  # in a worker thread too: the main thread only waits, so a stop's handler never runs mid-start
+        with ThreadPoolExecutor(1) as pool:
+            pool.submit(lambda: [one(job, None) for job in todo]).result()
         return failed
     queue, cpus = iter(group_list), worker_cpus(workers)
 

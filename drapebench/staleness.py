@@ -106,17 +106,27 @@ def implementation(row: str) -> str | None:
 @lru_cache(maxsize=None)
 def code_files(impl: str, track: str | None = None) -> tuple:
     """The config files (repository paths) that belong to ``impl``: every method config of today's tree whose
-    implementation it is, and with a ``track`` the presets named like it: ``<track>.yaml`` in each of its budget
-    folders (``conf/method/<impl>_*/``) and, for a method that trains (:func:`learns`), in the training and
-    reference-set presets (``conf/train/``, ``conf/data/``), listed whether or not the file exists (a preset added or
-    removed changes the fingerprint); its ``.py`` files are listed per commit by :func:`fingerprint`."""
+    implementation it is, and with a ``track``, for a method that trains (:func:`learns`), the training and
+    reference-set presets named like it (``conf/train/<track>.yaml``, ``conf/data/<track>.yaml``), listed whether or
+    not the file exists (a preset added or removed changes the fingerprint); its ``.py`` files and its budget folders'
+    presets (:func:`budget_files`) are listed per commit by :func:`fingerprint`."""
     conf = PROJECT_ROOT / METHOD_CONF
     files = [f"{METHOD_CONF}/{p.name}" for p in sorted(conf.glob("*.yaml")) if _conf_impl(p.stem) == impl]
-    if track is not None:
-        files += [f"{METHOD_CONF}/{d.name}/{track}.yaml" for d in sorted(conf.glob(f"{impl}_*")) if d.is_dir()]
-        if learns(impl):
-            files += [f"{d}/{track}.yaml" for d in TRAINING_CONF]
+    if track is not None and learns(impl):
+        files += [f"{d}/{track}.yaml" for d in TRAINING_CONF]
     return tuple(files)
+
+
+def budget_files(impl: str, track: str, commit: str | None = None) -> list:
+    """``<track>.yaml`` of each of ``impl``'s budget folders (``conf/method/<impl>_*/``) in the tree of ``commit``
+    (None: the working tree), whether or not the file exists there: a folder that exists on one side only then
+    changes the fingerprint."""
+    if commit is None:
+        folders = [d.name for d in sorted((PROJECT_ROOT / METHOD_CONF).glob(f"{impl}_*")) if d.is_dir()]
+    else:
+        listed = _git("ls-tree", "-d", "--name-only", commit, f"{METHOD_CONF}/").stdout.split()
+        folders = sorted(Path(d).name for d in listed if Path(d).name.startswith(f"{impl}_"))
+    return [f"{METHOD_CONF}/{d}/{track}.yaml" for d in folders]
 
 
 @lru_cache(maxsize=None)
@@ -170,7 +180,7 @@ def fingerprint(impl: str, commit: str | None = None, track: str | None = None) 
         paths = sorted(p for p in listed if p.endswith(".py") and makes_numbers(p))
         read = lambda p: (lambda r: r.stdout if r.returncode == 0 else None)(_git("show", f"{commit}:{p}"))  # noqa: E731
     h = hashlib.sha256()
-    for p in [*paths, *code_files(impl, track)]:
+    for p in [*paths, *code_files(impl, track), *(budget_files(impl, track, commit) if track is not None else [])]:
         text = read(p)
         h.update(f"{p}\0{'absent' if text is None else _normalised(p, text)}\0".encode())
     return h.hexdigest()[:12]
@@ -255,14 +265,19 @@ def code_of(impl: str) -> str | None:
 
 def trained_by_changed_code(impl: str, state) -> str | None:
     """Why the cached model ``state`` (a checkpoint's dict) was trained by other code than this checkout's, or None.
-    Its ``code`` (:func:`code_of` when it was trained, uncommitted edits included) is compared with today's; a
-    checkpoint stored before that was recorded is judged by its ``commit`` (:func:`changed_since`). None too when
-    it cannot be checked: ``impl`` names no folder, or an old checkpoint's commit is unknown."""
+    Its ``code`` (:func:`code_of` when it was trained, uncommitted edits included) is compared with today's; where
+    they differ but it was trained at a clean commit git knows, the code at that commit is fingerprinted again the
+    way it is today (a stored code of an older definition, presets included, is no reason to retrain); a checkpoint
+    stored before the code was recorded is judged by its ``commit`` (:func:`changed_since`). None too when it cannot
+    be checked: ``impl`` names no folder, or an old checkpoint's commit is unknown."""
     now = code_of(impl)
     if now is None:
         return None
     if state.get("code"):
-        return None if state["code"] == now else f"it was trained by methods/{_folder(impl)} code {state['code']}, which is {now} now"
+        full = known(state.get("commit", ""))
+        if state["code"] == now or (full is not None and fingerprint(_folder(impl), full) == now):
+            return None
+        return f"it was trained by methods/{_folder(impl)} code {state['code']}, which is {now} now"
     older = changed_since(_folder(impl), state.get("commit", "unrecorded"))
     return None if older is None else f"it was trained by methods/{_folder(impl)} as of {older[:7]}, which has changed since"
 

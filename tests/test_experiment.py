@@ -242,6 +242,12 @@ def test_a_checkpoint_without_its_code_is_judged_by_its_commit(monkeypatch):
     assert staleness.trained_by_changed_code("gaps", {"commit": "b" * 40}) is None
     assert staleness.trained_by_changed_code("nowhere", {"commit": old}) is None and staleness.code_of(None) is None
     assert staleness.trained_by_changed_code("gaps", {"commit": old, "code": "disk"}) is None  # its own code: loaded
+    # a code stored under an older definition of the fingerprint: its clean commit's code, fingerprinted today's way
+    monkeypatch.setattr(staleness, "known", lambda c: {"HEAD": head, head: head, old: old}.get(c))
+    monkeypatch.setattr(staleness, "fingerprint", lambda impl, commit=None, track=None: "today" if commit in (None, head) else "other")
+    assert staleness.trained_by_changed_code("gaps", {"commit": head, "code": "olddef"}) is None  # the same code: loaded
+    assert "code olddef" in staleness.trained_by_changed_code("gaps", {"commit": old, "code": "olddef"})  # other code: retrained
+    assert staleness.trained_by_changed_code("gaps", {"commit": head + "-dirty", "code": "olddef"}) is not None  # unchecked edits
 
 
 def test_changed_since_compares_the_fingerprints_at_a_known_commit(monkeypatch):

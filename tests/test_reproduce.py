@@ -402,7 +402,8 @@ def test_a_per_garment_method_needs_a_training_per_garment():
 
 def test_a_run_another_process_holds_is_not_started_again_and_its_folder_is_kept(tmp_path):
     """A run whose lock another process holds (an orphan of a stopped command, or a second command over the same
-    runs folder) is not started a second time, and the folder it writes into is not removed under it."""
+    runs folder) is not started a second time, and the folder it writes into is not removed under it; nor is a run
+    that another command finished after this one listed it."""
     import fcntl
 
     from drapebench.reproduce import BUSY, run_job
@@ -414,6 +415,9 @@ def test_a_run_another_process_holds_is_not_started_again_and_its_folder_is_kept
         fcntl.flock(held, fcntl.LOCK_EX | fcntl.LOCK_NB)
         assert run_job(job, "c") == BUSY
     assert (job.dir / "losses.csv").read_text() == "step\n1\n" and not (tmp_path / "runs" / "0.log").exists()
+    (job.dir / "metrics.json").write_text("{}")  # finished by the other command, lock released
+    (job.dir / "reproduce.json").write_text(json.dumps({"overrides": ["k=1"], "commit": "c"}))
+    assert run_job(job, "c") == 0 and (job.dir / "losses.csv").exists() and not (tmp_path / "runs" / "0.log").exists()
 
 
 STOPPED_COMMAND = """
@@ -428,13 +432,15 @@ reproduce.PROJECT_ROOT = root  # run.py here is a stand-in that notes its pid an
 cost.grouped = lambda todo: ([[j] for j in todo], set(), {})
 jobs = [reproduce.Job("t", Sweep("x"), (f"k={i}",), root / "runs" / str(i)) for i in range(3)]
 reproduce.stop_runs_on_signals()
-reproduce.run_all(jobs, "c", say=lambda s: None, workers=2)
+reproduce.run_all(jobs, "c", say=lambda s: None, workers=int(sys.argv[2]))
 """
 
 
-def test_a_stopped_command_stops_its_runs_and_starts_no_other(tmp_path):
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_stopped_command_stops_its_runs_and_starts_no_other(tmp_path, workers):
     """SIGTERM to the command terminates the runs it started (left running, they would write beside a restarted
-    command's copies of them, in the same folders) and starts none of the runs left; it exits 128 + 15."""
+    command's copies of them, in the same folders) and starts none of the runs left; it exits 128 + 15. One worker
+    or two: the runs start in worker threads, so the handler never runs between a run's start and its listing."""
     import signal
     import subprocess
     import sys
@@ -443,12 +449,13 @@ def test_a_stopped_command_stops_its_runs_and_starts_no_other(tmp_path):
     (tmp_path / "run.py").write_text("import os, pathlib, sys, time\n"
                                      "pathlib.Path(sys.argv[0]).parent.joinpath('pids').open('a').write(f'{os.getpid()}\\n')\n"
                                      "time.sleep(120)\n")  # fmt: skip
-    command = subprocess.Popen([sys.executable, "-c", STOPPED_COMMAND, str(tmp_path)], cwd=ROOT)
+    command = subprocess.Popen([sys.executable, "-c", STOPPED_COMMAND, str(tmp_path), str(workers)], cwd=ROOT)
     pids_file, deadline = tmp_path / "pids", time.monotonic() + 60
-    while (not pids_file.exists() or len(pids_file.read_text().split()) < 2) and time.monotonic() < deadline:
+    while (not pids_file.exists() or len(pids_file.read_text().split()) < workers) and time.monotonic() < deadline:
         time.sleep(0.1)
+    time.sleep(0.3)  # a second run would have started by now
     pids = [int(p) for p in pids_file.read_text().split()]
-    assert len(pids) == 2  # two workers, one run each
+    assert len(pids) == workers  # one run per worker
     command.send_signal(signal.SIGTERM)
     assert command.wait(timeout=30) == 128 + signal.SIGTERM
 
@@ -461,4 +468,4 @@ def test_a_stopped_command_stops_its_runs_and_starts_no_other(tmp_path):
 
     time.sleep(0.5)
     assert not [p for p in pids if alive(p)], "the command's runs outlived it"
-    assert len(pids_file.read_text().split()) == 2  # the third run never started
+    assert len(pids_file.read_text().split()) == workers  # the runs left never started

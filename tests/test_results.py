@@ -223,7 +223,7 @@ def test_a_training_preset_is_part_of_a_learning_method_s_code_on_its_own_track_
     conf/data) retrains it, so rows from before the change are stale for the methods that train and not for lbs;
     only for the tables made with that preset, though (train=cpu: the CPU tables; train=paper: the _gpu ones), and
     a cached model's own stored code leaves presets out (its key holds them)."""
-    from drapebench.staleness import code_files, learns, track_of
+    from drapebench.staleness import budget_files, code_files, known, learns, track_of
 
     assert learns("gaps") and learns("gensim") and learns("vae") and not learns("lbs") and not learns("pbs")
     presets = ("conf/train/", "conf/data/")
@@ -232,7 +232,8 @@ def test_a_training_preset_is_part_of_a_learning_method_s_code_on_its_own_track_
         assert not any(f.endswith("/paper.yaml") for f in code_files(impl, "cpu"))
         assert {"conf/train/paper.yaml", "conf/data/paper.yaml"} <= set(code_files(impl, "paper"))
         assert not any(f.startswith(presets) or f.count("/") > 2 for f in code_files(impl))  # a checkpoint's code: no presets
-    assert "conf/method/gaps_budget/cpu.yaml" in code_files("gaps", "cpu") and "conf/method/gaps_budget/long.yaml" not in code_files("gaps", "cpu")
+    assert budget_files("gaps", "cpu") == ["conf/method/gaps_budget/cpu.yaml"] == budget_files("gaps", "cpu", known("HEAD"))
+    assert budget_files("vae", "paper") == ["conf/method/vae_data/paper.yaml"]  # listed though absent: its creation counts
     assert not any(f.startswith(presets) for f in code_files("lbs", "cpu") + code_files("pbs", "paper"))
     assert (track_of("vae_table2"), track_of("vae_table2_gpu")) == ("cpu", "paper")
 
