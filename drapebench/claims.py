@@ -61,7 +61,8 @@ class Table:
     """A committed table read from its CSV: cells keyed by (row, column group, metric label) (group "" for a
     table without groups), its groups in order, the commits of its provenance line and, where it names them, the
     commits of each row and those whose code trained a row's models when they are not its runs' ("unrecorded": a
-    model cached before that was recorded)."""
+    model cached before that was recorded), and the track its rows are judged on (its presets note, else its name's:
+    :func:`drapebench.staleness.track_of`)."""
 
     name: str
     cells: dict
@@ -69,6 +70,7 @@ class Table:
     commits: list
     row_commits: dict = field(default_factory=dict)
     trained_at: dict = field(default_factory=dict)
+    track: str = "cpu"
 
     def get(self, row: str, group: str, metric: str) -> Value | None:
         """The parsed cell, None where the table lacks it or it holds no number."""
@@ -83,9 +85,10 @@ _COMMIT = r"[0-9a-f]{4,40}(?:-dirty)?"  # a commit as the tables write it (repor
 _TRAINED = rf"(?:{_COMMIT}|unrecorded|unknown)"  # a commit that trained a model, as report.trained_note writes it
 
 
-def _provenance(comments: list) -> tuple[list, dict, dict]:
+def _provenance(comments: list) -> tuple[list, dict, dict, str | None]:
     """(the commits of a table's provenance line, {row: its commits} from its mixed-commits note, {row: the commits
-    that trained its models} from its trained-at note) of a table's ``#`` lines."""
+    that trained its models} from its trained-at note, the track of its presets note: "cpu", or "<train>+<data>" where
+    they differ, None without one) of a table's ``#`` lines."""
     commits = re.search(rf"commit\(?s?\)? ({_COMMIT}(?:, {_COMMIT})*)(?: on | \(|\.|$)", comments[0]) if comments else None
     commits = [c.strip() for c in commits.group(1).split(",")] if commits else []
     mixed = next((c for c in comments if c.startswith("**Mixed commits**")), "")
@@ -94,18 +97,21 @@ def _provenance(comments: list) -> tuple[list, dict, dict]:
     cached = next((c for c in comments if c.startswith("**Models trained at**")), "")
     trained_at = {m.group(1): [c.strip() for c in m.group(2).split(",")]
                   for m in re.finditer(rf"([\w.-]+) ({_TRAINED}(?:, {_TRAINED})*)(?=;|\.$)", cached.rsplit(": ", 1)[-1])}  # fmt: skip
-    return commits, row_commits, trained_at
+    presets = next((re.fullmatch(r"\*\*Presets\*\*: train=([\w.-]+), data=([\w.-]+)\.", c) for c in comments
+                    if c.startswith("**Presets**")), None)  # fmt: skip
+    track = None if presets is None else presets.group(1) if presets.group(1) == presets.group(2) else "+".join(presets.groups())
+    return commits, row_commits, trained_at, track
 
 
 def read_table(path: Path) -> Table:
     """A table's CSV (``#`` provenance lines, a one- or two-row header, a checksum footer) as a :class:`Table`;
     raises :class:`drapebench.table_file.TableError` naming the file and line of anything it cannot trust."""
     f = read_csv(path)
-    commits, row_commits, trained_at = _provenance(f.comments)
+    commits, row_commits, trained_at, track = _provenance(f.comments)
     metrics = f.header[-1]
     groups = f.header[0] if len(f.header) == 2 else [""] * len(metrics)
     cells = {(cells[0], groups[j], metrics[j]): cells[j] for _, cells in f.rows for j in range(1, len(cells))}
-    return Table(Path(path).stem, cells, list(dict.fromkeys(groups[1:])), commits, row_commits, trained_at)
+    return Table(Path(path).stem, cells, list(dict.fromkeys(groups[1:])), commits, row_commits, trained_at, track or track_of(Path(path).stem))
 
 
 KINDS = ("order", "order_groups", "level", "within", "untested")
@@ -321,7 +327,7 @@ def evaluate(claim: Claim, table: Table | None, floors: dict | None = None, code
     controls = {r for c in claim.control for r in ([c] if isinstance(c, str) else c.values())}
     rows = {x for c in found for x in (c.hi, c.lo) if x != "bound"} | controls
     stale = stale_rows(sorted(rows & set(table.rows())), table.row_commits, table.commits, code, owner(table.name), table.trained_at,
-                       track_of(table.name))  # fmt: skip
+                       table.track)  # fmt: skip
     if stale:  # it can hold, never reproduce
         verdict = f"stale: {'holds' if verdict == 'reproduced' else verdict}"
     if not claim.comparable:
@@ -389,9 +395,9 @@ def stale_tables(reports: Path, code: dict | None = None) -> dict:
     out = {}
     for path in sorted(Path(reports).glob("*.csv")):
         f = read_csv(path, check_cells=False)
-        commits, row_commits, trained_at = _provenance(f.comments)
+        commits, row_commits, trained_at, track = _provenance(f.comments)
         rows = sorted({cells[0] for _, cells in f.rows})
-        stale = stale_rows(rows, row_commits, commits, code, owner(path.stem), trained_at, track_of(path.stem))
+        stale = stale_rows(rows, row_commits, commits, code, owner(path.stem), trained_at, track or track_of(path.stem))
         if stale:
             out[path.stem] = stale
     return out

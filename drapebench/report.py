@@ -88,6 +88,14 @@ def join_registry(run_dir: Path) -> None:
         known_impl(str(method.get("name")), method.get("impl"))
 
 
+def _presets(run_dir: Path) -> dict:
+    """The training and reference-set presets a run was made with (``train_preset``, ``data_preset``: the names of its
+    config's ``train`` and ``data``), {} where its ``config.yaml`` is missing or names none."""
+    conf = Path(run_dir) / "config.yaml"
+    cfg = (yaml.safe_load(conf.read_text()) or {}) if conf.exists() else {}
+    return {f"{k}_preset": str(cfg[k]["name"]) for k in ("train", "data") if isinstance(cfg.get(k), dict) and cfg[k].get("name")}
+
+
 def collect(dirs) -> pd.DataFrame:
     """One row per ``metrics.json`` found below ``dirs`` (a run dir or a sweep dir, jobs in job order; a method its
     ``config.yaml`` names by import path joins the registry, :func:`drapebench.plugins.known_impl`), with its
@@ -104,6 +112,7 @@ def collect(dirs) -> pd.DataFrame:
             if env.exists():  # the torch threads the run drew with: a drape time depends on them
                 rec["torch_threads"] = json.loads(env.read_text()).get("torch_threads")
             join_registry(f.parent)
+            rec.update(_presets(f.parent))
             losses = f.parent / "losses.csv"  # without it (a run restored from an archive): its record of the time
             converged = (converged_seconds(losses, rec["train_s"]) if losses.exists() else converged_of(f.parent)) if rec.get("train_s") else None
             if converged is not None:
@@ -331,6 +340,20 @@ def trained_note(df: pd.DataFrame) -> str:
     per = other.groupby("method", sort=False)["trained_at"].agg(lambda c: ", ".join(short_commit(str(x)) for x in dict.fromkeys(c)))
     return ("**Models trained at**: some models were trained (and cached) by the code of another commit than their runs': "
             + "; ".join(f"{m} {c}" for m, c in per.items()) + ".")
+
+
+def presets_note(df: pd.DataFrame) -> str:
+    """The training and reference-set presets of the runs behind a table, "**Presets**: train=cpu, data=cpu." (read by
+    the scoreboard: a table's rows are judged by those presets' files, :mod:`drapebench.staleness`), or a note that
+    the runs mix them; "" where a run did not record them (made before, or restored without its config)."""
+    columns = [f"{k}_preset" for k in ("train", "data")]
+    if not all(c in df for c in columns) or df[columns].isna().any(axis=None):
+        return ""
+    names = {k: sorted(set(map(str, df[f"{k}_preset"]))) for k in ("train", "data")}
+    if len(names["train"]) == 1 and len(names["data"]) == 1:
+        return f"**Presets**: train={names['train'][0]}, data={names['data'][0]}."
+    return (f"**Mixed presets**: the runs mix train={' and '.join(names['train'])} with data={' and '.join(names['data'])}: "
+            "make one table per preset (the scoreboard judges this one by its name's track).")
 
 
 def training_note(df: pd.DataFrame) -> str:
@@ -760,7 +783,7 @@ def write_table(dirs, name: str, out: Path, command: str | None = None, methods:
     if ts.pareto and speedups(df):
         notes += "\n\n" + speedups(df)
     notes += "\n\n" + seeds_note(df, group)
-    warnings = [n for n in (training_note(df), time_cut_note(df), commits_note(df), trained_note(df)) if n]  # written to every format below
+    warnings = [n for n in (training_note(df), presets_note(df), time_cut_note(df), commits_note(df), trained_note(df)) if n]  # written to every format below
     for note in warnings:
         notes += "\n\n" + note
     out = gpu_out(Path(out), df)

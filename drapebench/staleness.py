@@ -4,9 +4,10 @@ not its code: the table names the commit that trained it, ``report.trained_note`
 
 A method's code is its implementation folder ``methods/<impl>/`` (its ``.py`` files but the declarations of what
 it reports, :func:`makes_numbers`) and its configs (``conf/method/<name>.yaml`` of every config whose implementation
-it is), and, for a table, the presets of the table's track (:func:`track_of`: ``cpu`` for the committed CPU tables,
-made with ``train=cpu`` and ``data=cpu``; ``paper`` for a ``_gpu`` table): the budget files named like the track in
-``conf/method/<impl>_*/`` and, for a method that trains, ``conf/train/<track>.yaml`` and ``conf/data/<track>.yaml``.
+it is), and, for a table, the presets its runs were made with (the table's "Presets" note; a table written before
+it: its name's track, :func:`track_of`: ``cpu`` for the CPU tables, ``paper`` for a ``_gpu`` one): the budget files
+named like them in ``conf/method/<impl>_*/`` and, for a method that trains, ``conf/train/<train>.yaml`` and
+``conf/data/<data>.yaml``.
 So a change to the GPU presets leaves the CPU tables' rows current, and the other way round. A cached model's own
 stored code (:func:`code_of`) leaves the presets out: its cache key holds the resolved presets it trained with.
 Compared by :func:`fingerprint`: Python without comments and docstrings (its syntax tree), YAML as the data it loads,
@@ -35,9 +36,17 @@ TRACKS = ("cpu", "paper")  # the preset names the committed tables are made with
 
 
 def track_of(table: str) -> str:
-    """The presets a committed table's runs use: "paper" for a ``_gpu`` table (``train=paper``, ``data=paper``), "cpu"
-    for the others (their experiments' ``train=cpu``, ``data=cpu``)."""
+    """The presets a committed table's runs use when the table does not name them (a table written before its
+    "Presets" note, ``drapebench.report.presets_note``): "paper" for a ``_gpu`` table (``train=paper``,
+    ``data=paper``), "cpu" for the others (their experiments' ``train=cpu``, ``data=cpu``). A track is one preset
+    name for both, or "<train>+<data>"."""
     return "paper" if table.endswith("_gpu") else "cpu"
+
+
+def _presets(track: str) -> tuple[str, str]:
+    """(the training preset, the reference-set preset) of ``track`` ("cpu", or "paper+cpu")."""
+    train, _, data = track.partition("+")
+    return train, data or train
 
 
 def code_key(impl: str, track: str) -> str:
@@ -113,20 +122,21 @@ def code_files(impl: str, track: str | None = None) -> tuple:
     conf = PROJECT_ROOT / METHOD_CONF
     files = [f"{METHOD_CONF}/{p.name}" for p in sorted(conf.glob("*.yaml")) if _conf_impl(p.stem) == impl]
     if track is not None and learns(impl):
-        files += [f"{d}/{track}.yaml" for d in TRAINING_CONF]
+        files += [f"{d}/{name}.yaml" for d, name in zip(TRAINING_CONF, _presets(track))]
     return tuple(files)
 
 
 def budget_files(impl: str, track: str, commit: str | None = None) -> list:
-    """``<track>.yaml`` of each of ``impl``'s budget folders (``conf/method/<impl>_*/``) in the tree of ``commit``
-    (None: the working tree), whether or not the file exists there: a folder that exists on one side only then
-    changes the fingerprint."""
+    """The ``<preset>.yaml`` of ``track``'s presets (its training one and its reference-set one: a budget folder is
+    keyed by either) in each of ``impl``'s budget folders (``conf/method/<impl>_*/``) in the
+    tree of ``commit`` (None: the working tree), whether or not the file exists there: a folder that exists on one
+    side only then changes the fingerprint."""
     if commit is None:
         folders = [d.name for d in sorted((PROJECT_ROOT / METHOD_CONF).glob(f"{impl}_*")) if d.is_dir()]
     else:
         listed = _git("ls-tree", "-d", "--name-only", commit, f"{METHOD_CONF}/").stdout.split()
         folders = sorted(Path(d).name for d in listed if Path(d).name.startswith(f"{impl}_"))
-    return [f"{METHOD_CONF}/{d}/{track}.yaml" for d in folders]
+    return [f"{METHOD_CONF}/{d}/{name}.yaml" for d in folders for name in dict.fromkeys(_presets(track))]
 
 
 @lru_cache(maxsize=None)

@@ -584,3 +584,27 @@ def test_the_scene_line_names_the_body_shapes_of_the_runs():
 def test_a_cell_of_two_seeds_gives_their_mean_std_and_n(tmp_path):
     t = table(_seeded_runs(tmp_path, [1.0, 2.0]), ["eps_e"])
     assert t.loc["gaps", ("tshirt", "ε_e (%)")] == f"1.500 ± {np.std([1.0, 2.0], ddof=1):.3f} (n=2)"
+
+
+def test_a_table_names_its_runs_presets_and_the_scoreboard_judges_it_by_them(tmp_path):
+    """A table written from runs records the training and reference-set presets their configs name; the scoreboard
+    judges its rows by those presets' files (a _gpu table of train=cpu runs is on the cpu track), and a table that
+    mixes presets says so."""
+    from drapebench.claims import read_table
+    from drapebench.report import presets_note
+
+    _seeded_runs(tmp_path / "runs", [1.0, 2.0, 4.0])
+    for seed in range(3):
+        (tmp_path / "runs" / f"{seed}_gaps_tshirt" / "config.yaml").write_text("train:\n  name: cpu\ndata:\n  name: cpu\n")
+    assert presets_note(collect([tmp_path / "runs"])) == ""  # pbs's run names none: not all runs say
+    (tmp_path / "runs" / "9_pbs_tshirt" / "config.yaml").write_text("train:\n  name: cpu\ndata:\n  name: cpu\n")
+    paths = write_table([tmp_path / "runs"], "baseline", tmp_path / "out" / "t_gpu", command="pytest")
+    assert "**Presets**: train=cpu, data=cpu." in paths[2].read_text()
+    assert read_table(paths[2]).track == "cpu"  # a _gpu name, but the runs read the cpu presets
+    (tmp_path / "runs" / "0_gaps_tshirt" / "config.yaml").write_text("train:\n  name: paper\ndata:\n  name: cpu\n")
+    assert presets_note(collect([tmp_path / "runs"])).startswith("**Mixed presets**")
+    for seed in range(3):
+        (tmp_path / "runs" / f"{seed}_gaps_tshirt" / "config.yaml").write_text("train:\n  name: paper\ndata:\n  name: cpu\n")
+    (tmp_path / "runs" / "9_pbs_tshirt" / "config.yaml").write_text("train:\n  name: paper\ndata:\n  name: cpu\n")
+    paths = write_table([tmp_path / "runs"], "baseline", tmp_path / "out2" / "t", command="pytest")
+    assert read_table(paths[2]).track == "paper+cpu"

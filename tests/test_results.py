@@ -234,6 +234,9 @@ def test_a_training_preset_is_part_of_a_learning_method_s_code_on_its_own_track_
         assert not any(f.startswith(presets) or f.count("/") > 2 for f in code_files(impl))  # a checkpoint's code: no presets
     assert budget_files("gaps", "cpu") == ["conf/method/gaps_budget/cpu.yaml"] == budget_files("gaps", "cpu", known("HEAD"))
     assert budget_files("vae", "paper") == ["conf/method/vae_data/paper.yaml"]  # listed though absent: its creation counts
+    mixed = code_files("vae", "paper+cpu")  # train=paper with data=cpu: each preset its own file
+    assert "conf/train/paper.yaml" in mixed and "conf/data/cpu.yaml" in mixed and "conf/data/paper.yaml" not in mixed
+    assert budget_files("gaps", "paper+cpu") == ["conf/method/gaps_budget/paper.yaml", "conf/method/gaps_budget/cpu.yaml"]
     assert not any(f.startswith(presets) for f in code_files("lbs", "cpu") + code_files("pbs", "paper"))
     assert (track_of("vae_table2"), track_of("vae_table2_gpu")) == ("cpu", "paper")
 
