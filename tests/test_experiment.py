@@ -221,7 +221,8 @@ def test_a_checkpoint_trained_by_since_changed_method_code_is_trained_again(tmp_
     assert torch.load(path, weights_only=False)["code"] == staleness.fingerprint("lbs")
     experiment._checkpoint(Learned(), cfg, garment, data, train_cfg)
     assert len(Learned.fits) == 1 and experiment.loadable_checkpoint(Path(path), "lbs")  # the same code: loaded
-    monkeypatch.setattr(staleness, "fingerprint", lambda impl, commit=None, track=None: "edited")  # the code changed (committed or not)
+    # the code changed since (edited on disk: the training commit's code, fingerprinted again, differs from it too)
+    monkeypatch.setattr(staleness, "fingerprint", lambda impl, commit=None, track=None: "edited" if commit is None else "committed")
     assert not experiment.loadable_checkpoint(Path(path), "lbs")
     with caplog.at_level(logging.WARNING, logger="drapebench"):
         experiment._checkpoint(Learned(), cfg, garment, data, train_cfg)
