@@ -116,8 +116,8 @@ def implementation(row: str) -> str | None:
 def code_files(impl: str, track: str | None = None) -> tuple:
     """The config files (repository paths) that belong to ``impl``: every method config of today's tree whose
     implementation it is, and with a ``track``, for a method that trains (:func:`learns`), the training and
-    reference-set presets named like it (``conf/train/<track>.yaml``, ``conf/data/<track>.yaml``), listed whether or
-    not the file exists (a preset added or removed changes the fingerprint); its ``.py`` files and its budget folders'
+    reference-set presets it names (``conf/train/<train>.yaml``, ``conf/data/<data>.yaml``), listed whether or not
+    the file exists (a preset added or removed changes the fingerprint); its ``.py`` files and its budget folders'
     presets (:func:`budget_files`) are listed per commit by :func:`fingerprint`."""
     conf = PROJECT_ROOT / METHOD_CONF
     files = [f"{METHOD_CONF}/{p.name}" for p in sorted(conf.glob("*.yaml")) if _conf_impl(p.stem) == impl]
@@ -200,10 +200,10 @@ def stale_rows(rows, row_commits: dict, table_commits, code: dict | None = None,
                trained_at: dict | None = None, track: str = "cpu") -> dict:  # fmt: skip
     """{row: why} for the rows of ``rows`` that are stale: from another commit than the newest of
     ``table_commits``, from a commit git does not know, or run (or their models trained) by code whose
-    :func:`fingerprint` on ``track`` (the table's, :func:`track_of`) differs from ``code`` ({:func:`code_key`:
-    fingerprint}, the code the verdicts are judged against; default: the working tree's). ``row_commits``:
-    {row: [commits]}; a row missing from it ran at the table's commits. ``owner``: the implementation of the rows that name no method config (a benchmark's garment rows;
-    :func:`table_specs.owner`). ``trained_at``: {method: [commits]}, those whose code trained the method's cached
+    :func:`fingerprint` with ``track``'s presets (the table's runs', :func:`track_of`) differs from ``code``
+    ({:func:`code_key`: fingerprint}, the code the verdicts are judged against; default: the working tree's).
+    ``row_commits``: {row: [commits]}; a row missing from it ran at the table's commits. ``owner``: the
+    implementation of the rows that name no method config (a benchmark's garment rows; :func:`table_specs.owner`). ``trained_at``: {method: [commits]}, those whose code trained the method's cached
     models where they are not its runs' commit (a garment row reads every method of ``owner``; "unrecorded", a
     model cached before that was recorded, is not judged)."""
     table_commit = newest(table_commits)
