@@ -79,20 +79,21 @@ def _run_files(d: Path, name: str) -> list[Path]:
     return [d / name] if (d / name).exists() else sorted(d.rglob(name), key=_job_order)
 
 
-def join_registry(run_dir: Path) -> None:
+def join_registry(run_dir: Path) -> dict:
     """A method that ``run_dir``'s ``config.yaml`` names by import path joins the registry, so that its package's
-    declarations (its diagnostics' labels, its tables) are read (:func:`drapebench.plugins.known_impl`)."""
-    conf = Path(run_dir) / "config.yaml"
-    if conf.exists():
-        method = (yaml.safe_load(conf.read_text()) or {}).get("method") or {}
-        known_impl(str(method.get("name")), method.get("impl"))
-
-
-def _presets(run_dir: Path) -> dict:
-    """The training and reference-set presets a run was made with (``train_preset``, ``data_preset``: the names of its
-    config's ``train`` and ``data``), {} where its ``config.yaml`` is missing or names none."""
+    declarations (its diagnostics' labels, its tables) are read (:func:`drapebench.plugins.known_impl`); returns that
+    config ({} without one)."""
     conf = Path(run_dir) / "config.yaml"
     cfg = (yaml.safe_load(conf.read_text()) or {}) if conf.exists() else {}
+    if cfg:
+        method = cfg.get("method") or {}
+        known_impl(str(method.get("name")), method.get("impl"))
+    return cfg
+
+
+def _run_presets(cfg: dict) -> dict:
+    """The training and reference-set presets a run's config names (``train_preset``, ``data_preset``: the names of
+    its ``train`` and ``data``), {} where it names none."""
     return {f"{k}_preset": str(cfg[k]["name"]) for k in ("train", "data") if isinstance(cfg.get(k), dict) and cfg[k].get("name")}
 
 
@@ -111,8 +112,7 @@ def collect(dirs) -> pd.DataFrame:
             env = f.parent / "env.json"
             if env.exists():  # the torch threads the run drew with: a drape time depends on them
                 rec["torch_threads"] = json.loads(env.read_text()).get("torch_threads")
-            join_registry(f.parent)
-            rec.update(_presets(f.parent))
+            rec.update(_run_presets(join_registry(f.parent)))
             losses = f.parent / "losses.csv"  # without it (a run restored from an archive): its record of the time
             converged = (converged_seconds(losses, rec["train_s"]) if losses.exists() else converged_of(f.parent)) if rec.get("train_s") else None
             if converged is not None:

@@ -157,7 +157,7 @@ def finished(job: Job, at: str) -> bool:
 BUSY = -1000  # run_job's status for a run it did not start (another process holds it, or the command is stopping): no exit status
 _STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP, signal.SIGINT)
 _LIVE: set = set()  # the run.py processes started here and not yet reaped: stopped with this command
-_LIVE_LOCK = threading.RLock()  # re-entrant: the signal handler may run in the thread that holds it
+_LIVE_LOCK = threading.RLock()  # re-entrant: run_job called in the main thread (not by run_all) must not deadlock its own stop
 _STOPPING = threading.Event()  # set by a signal: no further run starts
 
 
@@ -293,9 +293,13 @@ def run_all(jobs: list, at: str, say=print, workers: int = 1, runner=run_job) ->
                 failed.append(job)
                 say(f"    stopped without a result; its log: {job.dir.parent / (job.dir.name + '.log')}")
 
+    def in_order() -> None:
+        for job in todo:
+            one(job, None)
+
     if workers <= 1:  # in a worker thread too: the main thread only waits, so a stop's handler never runs mid-start
         with ThreadPoolExecutor(1) as pool:
-            pool.submit(lambda: [one(job, None) for job in todo]).result()
+            pool.submit(in_order).result()
         return failed
     queue, cpus = iter(group_list), worker_cpus(workers)
 

@@ -203,7 +203,8 @@ def stale_rows(rows, row_commits: dict, table_commits, code: dict | None = None,
     :func:`fingerprint` with ``track``'s presets (the table's runs', :func:`track_of`) differs from ``code``
     ({:func:`code_key`: fingerprint}, the code the verdicts are judged against; default: the working tree's).
     ``row_commits``: {row: [commits]}; a row missing from it ran at the table's commits. ``owner``: the
-    implementation of the rows that name no method config (a benchmark's garment rows; :func:`table_specs.owner`). ``trained_at``: {method: [commits]}, those whose code trained the method's cached
+    implementation of the rows that name no method config (a benchmark's garment rows; :func:`table_specs.owner`).
+    ``trained_at``: {method: [commits]}, those whose code trained the method's cached
     models where they are not its runs' commit (a garment row reads every method of ``owner``; "unrecorded", a
     model cached before that was recorded, is not judged)."""
     table_commit = newest(table_commits)
