@@ -85,10 +85,10 @@ _COMMIT = r"[0-9a-f]{4,40}(?:-dirty)?"  # a commit as the tables write it (repor
 _TRAINED = rf"(?:{_COMMIT}|unrecorded|unknown)"  # a commit that trained a model, as report.trained_note writes it
 
 
-def _provenance(comments: list) -> tuple[list, dict, dict, str | None]:
+def _provenance(comments: list, name: str) -> tuple[list, dict, dict, str]:
     """(the commits of a table's provenance line, {row: its commits} from its mixed-commits note, {row: the commits
-    that trained its models} from its trained-at note, the track of its presets note: "cpu", or "<train>+<data>" where
-    they differ, None without one) of a table's ``#`` lines."""
+    that trained its models} from its trained-at note, the track its rows are judged on: its presets note's, "cpu" or
+    "<train>+<data>" where they differ, else its name's, :func:`track_of`) of the ``#`` lines of the table ``name``."""
     commits = re.search(rf"commit\(?s?\)? ({_COMMIT}(?:, {_COMMIT})*)(?: on | \(|\.|$)", comments[0]) if comments else None
     commits = [c.strip() for c in commits.group(1).split(",")] if commits else []
     mixed = next((c for c in comments if c.startswith("**Mixed commits**")), "")
@@ -99,7 +99,7 @@ def _provenance(comments: list) -> tuple[list, dict, dict, str | None]:
                   for m in re.finditer(rf"([\w.-]+) ({_TRAINED}(?:, {_TRAINED})*)(?=;|\.$)", cached.rsplit(": ", 1)[-1])}  # fmt: skip
     presets = next((re.fullmatch(r"\*\*Presets\*\*: train=([\w.-]+), data=([\w.-]+)\.", c) for c in comments
                     if c.startswith("**Presets**")), None)  # fmt: skip
-    track = None if presets is None else presets.group(1) if presets.group(1) == presets.group(2) else "+".join(presets.groups())
+    track = track_of(name) if presets is None else presets.group(1) if presets.group(1) == presets.group(2) else "+".join(presets.groups())
     return commits, row_commits, trained_at, track
 
 
@@ -107,11 +107,11 @@ def read_table(path: Path) -> Table:
     """A table's CSV (``#`` provenance lines, a one- or two-row header, a checksum footer) as a :class:`Table`;
     raises :class:`drapebench.table_file.TableError` naming the file and line of anything it cannot trust."""
     f = read_csv(path)
-    commits, row_commits, trained_at, track = _provenance(f.comments)
+    commits, row_commits, trained_at, track = _provenance(f.comments, Path(path).stem)
     metrics = f.header[-1]
     groups = f.header[0] if len(f.header) == 2 else [""] * len(metrics)
     cells = {(cells[0], groups[j], metrics[j]): cells[j] for _, cells in f.rows for j in range(1, len(cells))}
-    return Table(Path(path).stem, cells, list(dict.fromkeys(groups[1:])), commits, row_commits, trained_at, track or track_of(Path(path).stem))
+    return Table(Path(path).stem, cells, list(dict.fromkeys(groups[1:])), commits, row_commits, trained_at, track)
 
 
 KINDS = ("order", "order_groups", "level", "within", "untested")
@@ -395,9 +395,9 @@ def stale_tables(reports: Path, code: dict | None = None) -> dict:
     out = {}
     for path in sorted(Path(reports).glob("*.csv")):
         f = read_csv(path, check_cells=False)
-        commits, row_commits, trained_at, track = _provenance(f.comments)
+        commits, row_commits, trained_at, track = _provenance(f.comments, path.stem)
         rows = sorted({cells[0] for _, cells in f.rows})
-        stale = stale_rows(rows, row_commits, commits, code, owner(path.stem), trained_at, track or track_of(path.stem))
+        stale = stale_rows(rows, row_commits, commits, code, owner(path.stem), trained_at, track)
         if stale:
             out[path.stem] = stale
     return out
