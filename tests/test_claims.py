@@ -233,13 +233,24 @@ def test_every_claim_can_fail_and_names_its_control():
 
 
 def _flipped(tmp_path, claim: Claim, value: str) -> str:
-    """The verdict of ``claim`` after the first value of its credited row is made ``value``."""
+    """The verdict of ``claim`` after every value of its credited row in the claim's metrics is made ``value`` (one
+    cell alone cannot always move a verdict that several groups decide)."""
+    import csv
+    import io
+
     src = REPORTS / f"{claim.table}.csv"
-    text = src.read_text().rsplit("# sha256 ", 1)[0]
-    t = read_table(src)
+    metrics = read_csv(src).header[-1]
     row = claim.row or claim.credited_row()
-    cell = next(v for (r, _, m), v in t.cells.items() if r == row and m in claim.metrics and parse_cell(v))
-    (tmp_path / src.name).write_text(seal(text.replace(f",{cell},", f",{value},", 1)))
+    lines = src.read_text().rsplit("# sha256 ", 1)[0].splitlines(keepends=True)
+    for i, line in enumerate(lines):
+        fields = next(csv.reader([line])) if not line.startswith("#") and line.strip() else []
+        if fields and fields[0] == row:
+            fields = [value if j and metrics[j] in claim.metrics and parse_cell(v) else v for j, v in enumerate(fields)]
+            out = io.StringIO()
+            csv.writer(out, lineterminator="\n").writerow(fields)
+            lines[i] = out.getvalue()
+    assert "".join(lines) != src.read_text().rsplit("# sha256 ", 1)[0], f"{claim.id}: no cell of {row} to flip"
+    (tmp_path / src.name).write_text(seal("".join(lines)))
     return evaluate(claim, read_table(tmp_path / src.name)).verdict
 
 
