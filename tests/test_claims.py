@@ -1,6 +1,8 @@
 """The claims scoreboard: cell parsing, the verdict rules (ties, controls, floors, copies, stale rows), strict
 table reading, and reports/claims.md kept in step with the committed CSVs."""
 
+import csv
+import io
 import math
 import subprocess
 from pathlib import Path
@@ -235,9 +237,6 @@ def test_every_claim_can_fail_and_names_its_control():
 def _flipped(tmp_path, claim: Claim, value: str) -> str:
     """The verdict of ``claim`` after every value of its credited row in the claim's metrics is made ``value`` (one
     cell alone cannot always move a verdict that several groups decide)."""
-    import csv
-    import io
-
     src = REPORTS / f"{claim.table}.csv"
     metrics = read_csv(src).header[-1]
     row = claim.row or claim.credited_row()
