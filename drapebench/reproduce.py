@@ -317,18 +317,19 @@ def run_all(jobs: list, at: str, say=print, workers: int = 1, runner=run_job) ->
     return [j for j in todo if j in failed]
 
 
-def write_tables(names: list, root: Path, out: Path, quick: bool = False, say=print, at: str | None = None) -> list:
+def write_tables(names: list, root: Path, out: Path, quick: bool = False, say=print, at: str | None = None,
+                 benches: bool = True) -> list:
     """Write each table of ``names`` into ``out`` from its runs under ``root`` (a benchmark's table: run its
-    script, which ``quick`` skips: it is timed on its own scene), only once every run it plans has a result or a
-    recorded failure at commit ``at`` (default :func:`commit`); returns the paths written."""
+    script, which ``quick`` and ``benches=False`` skip: it is timed on its own scene), only once every run it plans has
+    a result or a recorded failure at commit ``at`` (default :func:`commit`); returns the paths written."""
     from drapebench.report import evaluation_plot, write_table
 
     paths = []
     for name in names:
         s = spec(name)
         target = out / name
-        if s.bench and quick:
-            say(f"{name}: skipped by --quick (a benchmark, timed on its own scene: {s.command()})")
+        if s.bench and (quick or not benches):
+            say(f"{name}: skipped by {'--quick' if quick else '--write-only'} (a benchmark, timed on its own scene: {s.command()})")
             continue
         if s.bench:
             shown = target.relative_to(PROJECT_ROOT) if target.is_relative_to(PROJECT_ROOT) else target  # the footer's command: rerunnable anywhere
@@ -365,6 +366,10 @@ def main(argv=None) -> int:
                         "and restore from it the runs the runs folder lacks, first; committed, it carries a regeneration over to "
                         "another machine (drapebench/run_archive.py)")
     parser.add_argument("--dry-run", action="store_true", help="list the runs and whether each has finished, and per method the trainings the unfinished ones need and how many are cached; run nothing")
+    parser.add_argument("--write-only", action="store_true", help="run nothing: write each table whose runs have all finished (at --at) "
+                        "from the runs folder, and from what --archive restores into it, then claims.md")
+    parser.add_argument("--at", help="with --write-only: the commit the runs were made at (default: this checkout's); a regeneration "
+                        "that ran in another checkout is written here from its runs folder or the committed archive")
     args = parser.parse_args(argv)
     if not args.tables:
         parser.error(f"--tables: no table named; leave --tables out for all of them, or name some: {', '.join(tables)}")
@@ -387,8 +392,19 @@ def main(argv=None) -> int:
                          "and would enter the committed archive; leave --archive out or name a folder outside reports/")
         if why := clash(root, args.archive):
             parser.error(f"--archive {args.archive}: {why}")
+    if args.at and not args.write_only:
+        parser.error(f"--at {args.at}: only with --write-only (runs are made at this checkout's commit); add --write-only or leave --at out")
+    if args.write_only and args.dry_run:
+        parser.error("--write-only --dry-run: both run nothing; --dry-run lists the runs, --write-only writes the finished tables; choose one")
     names = [n for n in tables if n in args.tables or _needed_by(n, args.tables)]
     at = commit()
+    if args.at:
+        from drapebench.staleness import run_label
+
+        at = run_label(args.at)
+        if at is None:
+            parser.error(f"--at {args.at}: not a commit of this repository (no run would match it); give the commit in the runs' "
+                         "reproduce.json, e.g. from `git log --oneline`")
     if args.archive and args.dry_run:
         print(f"archive {args.archive}: not synced by a dry run (the runs it would restore are listed as todo)")
     elif args.archive:
@@ -408,9 +424,11 @@ def main(argv=None) -> int:
               "the trainings of methods trained on reference drapes simulate first:")
         print("\n".join(summary(todo)))
         return 0
-    stop_runs_on_signals()
-    failed = run_all(jobs, at, workers=args.jobs, runner=_archiving(args.archive, root) if args.archive else run_job)
-    paths = write_tables([n for n in names if n in args.tables], root, out, args.quick, at=at)
+    failed = []
+    if not args.write_only:
+        stop_runs_on_signals()
+        failed = run_all(jobs, at, workers=args.jobs, runner=_archiving(args.archive, root) if args.archive else run_job)
+    paths = write_tables([n for n in names if n in args.tables], root, out, args.quick, at=at, benches=not args.write_only)
     from drapebench.claims import write_claims
 
     quick_note = "**--quick**: these verdicts read untrained 8-frame tables that check the pipeline; they are not results."

@@ -136,13 +136,13 @@ def main(argv=None) -> int:
     parser.add_argument("archive", type=Path, help="the archive (e.g. the main checkout's reports/runs)")
     parser.add_argument("--commit", help="the regeneration's commit: where both hold a run, the one made at it wins (default: both stay)")
     args = parser.parse_args(argv)
-    from drapebench.staleness import known
+    from drapebench.staleness import run_label
 
     if why := clash(args.runs, args.archive):
         parser.error(f"archive {args.archive}: {why}")
     at = None
     if args.commit:
-        at = known(args.commit) or (args.commit if "-dirty+" in args.commit else None)  # a short sha: the full one
+        at = run_label(args.commit)
         if at is None:
             parser.error(f"--commit {args.commit}: not a commit of this repository (its runs would never match); "
                          "give the regeneration's commit, e.g. from `git log --oneline`")

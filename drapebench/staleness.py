@@ -72,6 +72,12 @@ def known(commit: str) -> str | None:
     return out.stdout.strip() or None
 
 
+def run_label(given: str) -> str | None:
+    """The commit label that runs made at ``given`` record (:func:`drapebench.reproduce.commit`): the full hash of a
+    commit or its prefix, an uncommitted edit's ``<sha>-dirty+<hash>`` as given; None when it is neither."""
+    return known(given) or (given if "-dirty+" in given else None)
+
+
 def is_ancestor(a: str, b: str) -> bool:
     """Whether commit ``a`` is ``b`` or an ancestor of it (both known)."""
     return _git("merge-base", "--is-ancestor", a, b).returncode == 0

@@ -95,11 +95,36 @@ def test_an_archived_run_comes_back_on_a_new_machine_and_is_not_run_again(tmp_pa
     assert "1 runs restored from it" in said and "1 runs, 1 already finished" in said
 
 
+def test_write_only_writes_another_commit_s_finished_runs_and_runs_nothing(tmp_path, capsys, monkeypatch):
+    """A regeneration that ran in another checkout (at HEAD here) is written from its runs with --write-only --at; at
+    this checkout's own label those runs have not finished, and nothing is run to finish them."""
+    from drapebench.staleness import known
+
+    head = known("HEAD")
+    monkeypatch.setattr(reproduce, "commit", lambda: head)
+    runs, out = tmp_path / "runs", tmp_path / "out"
+    assert main(["--quick", "--tables", "baseline", "--runs", str(runs), "--out", str(tmp_path / "first")]) == 0
+    monkeypatch.setattr(reproduce, "commit", lambda: "1" * 40)  # this checkout: another commit
+    args = ["--quick", "--tables", "baseline", "--runs", str(runs), "--out", str(out), "--write-only"]
+    capsys.readouterr()
+    assert main(args) == 0
+    said = capsys.readouterr().out
+    assert "1 of its 1 runs have no result" in said and "[1/1]" not in said and not (out / "baseline.csv").exists()
+    assert main([*args, "--at", head[:10]]) == 0
+    said = capsys.readouterr().out
+    assert "[1/1]" not in said and "have no result" not in said
+    assert read_csv(out / "baseline.csv").rows == read_csv(tmp_path / "first" / "baseline.csv").rows
+    assert (out / "claims.md").exists()
+
+
 @pytest.mark.parametrize("argv, said", [
     (["--tables", "", "--dry-run"], "--tables: no table named; leave --tables out"),  # would have rewritten claims.md alone
     (["--tables", ",", "--dry-run"], "--tables: no table named"),
     (["--tables", "baseline", "--dry-run", "--jobs", "0"], "--jobs: at least 1, got 0"),
     (["--tables", "baseline, nosuch", "--dry-run"], "--tables: no table nosuch;"),  # spaces after commas are not part of a name
+    (["--tables", "baseline", "--at", "HEAD"], "--at HEAD: only with --write-only"),
+    (["--tables", "baseline", "--write-only", "--at", "nosuchcommit"], "--at nosuchcommit: not a commit of this repository"),
+    (["--tables", "baseline", "--write-only", "--dry-run"], "--write-only --dry-run: both run nothing"),
 ])
 def test_bad_arguments_are_refused_before_anything_runs_or_is_written(argv, said, capsys):
     with pytest.raises(SystemExit):
