@@ -115,6 +115,8 @@ def test_write_only_writes_another_commit_s_finished_runs_and_runs_nothing(tmp_p
     assert "[1/1]" not in said and "have no result" not in said
     assert read_csv(out / "baseline.csv").rows == read_csv(tmp_path / "first" / "baseline.csv").rows
     assert (out / "claims.md").exists()
+    said = []  # a benchmark table is timed on its own scene: --write-only runs no script
+    assert write_tables(["scaling"], runs, out, say=said.append, at=head, benches=False) == [] and "skipped by --write-only" in said[0]
 
 
 @pytest.mark.parametrize("argv, said", [
