@@ -232,29 +232,47 @@ def worker_cpus(workers: int) -> list:
     return [set(cores[k % len(cores) :: workers]) or {cores[k % len(cores)]} for k in range(workers)]
 
 
+def run_kind(job: Job) -> str:
+    """What ``job`` runs, for pricing it: its ``method.name=`` override, else its ``method=`` one, else its table (an
+    optimisation to the loss's optimum takes minutes where a trained model's evaluation takes seconds)."""
+    values = dict(o.split("=", 1) for o in job.overrides if "=" in o)
+    return values.get("method.name") or values.get("method") or job.table
+
+
 def time_left(took: dict, waiting: list, trains: set, workers: int) -> str:
-    """", about H:MM:SS left (n trainings, m other runs)" for the jobs ``waiting``: per kind (a run that trains a model,
-    its folder in ``trains``, or one that does not) the mean wall time of the runs of that kind finished
-    (``took``: {folder: (seconds, trained)}), over ``workers``; a kind none of whose runs has finished yet is left out
-    of the time and named as not timed yet (taking the other kind's mean said 26 h for a 12 h regeneration, its other
-    runs priced as trainings); "" before any run has finished."""
+    """", about H:MM:SS left (n trainings, m other runs)" for the jobs ``waiting``: each priced at the mean wall time
+    of the finished runs (``took``: {folder: (seconds, trained, kind)}) of its own kind (:func:`run_kind`; a run
+    that trains a model, its folder in ``trains``, apart from one that does not), else of its class (training or
+    not), over ``workers``; a class none of whose runs has finished yet is left out of the time and named as not
+    timed yet (taking the other class's mean said 26 h for a 12 h regeneration, its other runs priced as
+    trainings); "" before any run has finished."""
     if not took:
         return ""
-    n_train = sum(j.dir in trains for j in waiting)
-    counts = {True: n_train, False: len(waiting) - n_train}
+
+    def mean(values: list):
+        return sum(values) / len(values) if values else None
+
     names = {True: "trainings", False: "other runs"}
-    mean = {kind: [s for s, t in took.values() if t == kind] for kind in (True, False)}
-    timed = [k for k in (True, False) if mean[k]]
-    seconds = sum(counts[k] * sum(mean[k]) / len(mean[k]) for k in timed) / max(workers, 1)
-    untimed = [f"{counts[k]} {names[k]} not timed yet" for k in (True, False) if not mean[k] and counts[k]]
-    parts = ", ".join(f"{counts[k]} {names[k]}" for k in timed)
-    return f", about {_clock(seconds)} left ({parts}{'; ' + ', '.join(untimed) if untimed else ''})"
+    counts, untimed_counts, seconds = {True: 0, False: 0}, {True: 0, False: 0}, 0.0
+    for job in waiting:
+        trained, kind = job.dir in trains, run_kind(job)
+        counts[trained] += 1
+        price = mean([s for s, t, k in took.values() if (t, k) == (trained, kind)])
+        price = price if price is not None else mean([s for s, t, _ in took.values() if t == trained])
+        if price is None:
+            untimed_counts[trained] += 1
+        else:
+            seconds += price
+    seconds /= max(workers, 1)
+    timed = [f"{counts[k] - untimed_counts[k]} {names[k]}" for k in (True, False) if counts[k] > untimed_counts[k]]
+    untimed = [f"{untimed_counts[k]} {names[k]} not timed yet" for k in (True, False) if untimed_counts[k]]
+    return f", about {_clock(seconds)} left ({', '.join(timed)}{'; ' + ', '.join(untimed) if untimed else ''})"
 
 
 def run_all(jobs: list, at: str, say=print, workers: int = 1, runner=run_job) -> list:
     """Run the unfinished ``jobs`` in order, saying per run its place, what it is and an estimate of the time left
-    (:func:`time_left`: the runs left that train a model and the others, each at the mean wall time of its kind so
-    far); ``workers`` > 1 runs that many at once, each worker pinned to its cores (:func:`worker_cpus`) and taking
+    (:func:`time_left`: each run left at the mean wall time of the finished runs of its kind so far); ``workers`` > 1
+    runs that many at once, each worker pinned to its cores (:func:`worker_cpus`) and taking
     the next group of runs that share a model (:func:`drapebench.reproduce_cost.groups`) in order. Returns the jobs
     that did not finish."""
     from concurrent.futures import ThreadPoolExecutor
@@ -288,7 +306,7 @@ def run_all(jobs: list, at: str, say=print, workers: int = 1, runner=run_job) ->
                 if not _STOPPING.is_set():
                     say(f"    not started: another process is running it now (it holds {job.dir.parent / (job.dir.name + '.lock')})")
                 return
-            took[job.dir] = (time.monotonic() - t0, job.dir in trains)
+            took[job.dir] = (time.monotonic() - t0, job.dir in trains, run_kind(job))
             if code != 0 and not finished(job, at):
                 failed.append(job)
                 say(f"    stopped without a result; its log: {job.dir.parent / (job.dir.name + '.log')}")

@@ -392,10 +392,28 @@ def test_the_time_left_counts_the_trainings_left_at_a_trainings_time_and_the_oth
     jobs = [Job("t", Sweep("x"), (f"k={i}",), tmp_path / str(i)) for i in range(10)]
     trains = {jobs[0].dir, jobs[1].dir, jobs[5].dir}
     assert time_left({}, jobs, trains, 1) == ""  # nothing finished: no estimate
-    took = {jobs[0].dir: (600.0, True)}  # one training of 10 minutes so far: the other runs are not priced as trainings
+    took = {jobs[0].dir: (600.0, True, "t")}  # one training of 10 minutes so far: the other runs are not priced as trainings
     assert time_left(took, jobs[2:], trains, 2) == ", about 0:05:00 left (1 trainings; 7 other runs not timed yet)"
-    took[jobs[2].dir] = (6.0, False)
+    took[jobs[2].dir] = (6.0, False, "t")
     assert time_left(took, jobs[3:], trains, 1) == ", about 0:10:36 left (1 trainings, 6 other runs)"
+
+
+def test_the_time_left_prices_each_run_at_its_own_methods_mean(tmp_path):
+    """Optimisations to a loss's optimum (minutes) are not priced as a trained model's evaluations (seconds): a run
+    whose method has finished runs takes their mean; one whose method has none takes its class's."""
+    from drapebench.reproduce import run_kind, time_left
+
+    def job(i, *overrides):
+        return Job("t", Sweep("x"), overrides, tmp_path / str(i))
+
+    optimum = [job(i, "garment=dress", "method=gaps_optimum") for i in range(4)]
+    variant = job(4, "method=gaps_optimum", "method.name=gaps_kext1_optimum")
+    evals = [job(5 + i, "method=gaps") for i in range(3)]
+    assert run_kind(optimum[0]) == "gaps_optimum" and run_kind(variant) == "gaps_kext1_optimum"
+    assert run_kind(job(9, "garment=dress")) == "t"  # no method override: its table
+    took = {optimum[0].dir: (300.0, False, "gaps_optimum"), evals[0].dir: (10.0, False, "gaps")}
+    # 3 optimum runs at 300 s, 2 evaluations at 10 s, the variant (none finished) at the other runs' mean 155 s
+    assert time_left(took, optimum[1:] + evals[1:] + [variant], set(), 1) == ", about 0:17:55 left (6 other runs)"
 
 
 def test_a_benchmark_table_names_an_output_path_anyone_can_rerun(monkeypatch):
