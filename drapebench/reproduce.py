@@ -244,21 +244,23 @@ def time_left(took: dict, waiting: list, trains: set, workers: int) -> str:
     of the finished runs (``took``: {folder: (seconds, trained, kind)}) of its own kind (:func:`run_kind`; a run
     that trains a model, its folder in ``trains``, apart from one that does not), else of its class (training or
     not), over ``workers``; a class none of whose runs has finished yet is left out of the time and named as not
-    timed yet (taking the other class's mean said 26 h for a 12 h regeneration, its other runs priced as
-    trainings); "" before any run has finished."""
+    timed yet (a training is not priced as an evaluation, nor the reverse); "" before any run has finished."""
     if not took:
         return ""
 
-    def mean(values: list):
-        return sum(values) / len(values) if values else None
+    def means(key) -> dict:
+        groups = {}
+        for seconds_taken, trained, kind in took.values():
+            groups.setdefault(key(trained, kind), []).append(seconds_taken)
+        return {k: sum(v) / len(v) for k, v in groups.items()}
 
+    by_kind, by_class = means(lambda trained, kind: (trained, kind)), means(lambda trained, kind: trained)
     names = {True: "trainings", False: "other runs"}
     counts, untimed_counts, seconds = {True: 0, False: 0}, {True: 0, False: 0}, 0.0
     for job in waiting:
-        trained, kind = job.dir in trains, run_kind(job)
+        trained = job.dir in trains
         counts[trained] += 1
-        price = mean([s for s, t, k in took.values() if (t, k) == (trained, kind)])
-        price = price if price is not None else mean([s for s, t, _ in took.values() if t == trained])
+        price = by_kind.get((trained, run_kind(job)), by_class.get(trained))
         if price is None:
             untimed_counts[trained] += 1
         else:
