@@ -353,7 +353,11 @@ def write_tables(names: list, root: Path, out: Path, quick: bool = False, say=pr
             continue
         if s.bench:
             shown = target.relative_to(PROJECT_ROOT) if target.is_relative_to(PROJECT_ROOT) else target  # the footer's command: rerunnable anywhere
-            subprocess.run([sys.executable, *[a.format(out=shown) for a in s.bench]], cwd=PROJECT_ROOT, check=True)
+            # a script under benchmarks/ puts its own folder first on sys.path, so without PYTHONPATH it would import
+            # the installed drapebench (in a worktree: the main checkout's code, whose commit its footer would name)
+            path = os.pathsep.join(p for p in (str(PROJECT_ROOT), os.environ.get("PYTHONPATH", "")) if p)
+            subprocess.run([sys.executable, *[a.format(out=shown) for a in s.bench]], cwd=PROJECT_ROOT, check=True,
+                           env=dict(os.environ, PYTHONPATH=path))
             paths.append(target.with_suffix(".csv"))
             continue
         planned = plan([s.sweeps_of or name], root, quick)

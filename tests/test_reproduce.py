@@ -429,6 +429,21 @@ def test_a_benchmark_table_names_an_output_path_anyone_can_rerun(monkeypatch):
     assert len(calls) == 1 and "reports/vae_table2" in calls[0] and not any(str(ROOT) in a for a in calls[0][1:])
 
 
+def test_a_benchmark_script_imports_this_checkouts_code(monkeypatch):
+    """A script under benchmarks/ has its own folder first on sys.path: the benchmark runs with this checkout first on
+    PYTHONPATH, so that in a worktree it times (and its footer names) the worktree's code, not the installed one's."""
+    import os
+    import subprocess
+
+    import drapebench.reproduce as reproduce
+
+    envs = []
+    monkeypatch.setenv("PYTHONPATH", "/elsewhere")
+    monkeypatch.setattr(subprocess, "run", lambda argv, **kw: envs.append(kw.get("env")))
+    reproduce.write_tables(["vae_table2"], Path("unused"), ROOT / "reports", say=lambda s: None)
+    assert envs[0] is not None and envs[0]["PYTHONPATH"].split(os.pathsep) == [str(reproduce.PROJECT_ROOT), "/elsewhere"]
+
+
 def test_a_run_that_recorded_its_failure_has_finished(tmp_path):
     """on_failure=record: the failure is the run's result (a "failed" cell); a restart must not run it again."""
     (job,) = plan(["baseline"], tmp_path / "runs", quick=True)
