@@ -17,9 +17,10 @@ benchmark tables (those with ``bench``), timed on their own scenes, are skipped.
 The full command writes into ``reports/`` (``--out`` elsewhere).
 
 ``--jobs N`` runs N runs at once, each pinned to its share of the CPU cores (so that its automatic torch threads
-are that share, :func:`drapebench.experiment.job_threads`): the runs that train one model, or build one reference
-set, go to one worker in their order, so that no model is trained twice; a run whose model is cached only loads it
-and goes to any free worker (:func:`drapebench.reproduce_cost.groups`).
+are that share, :func:`drapebench.experiment.job_threads`): the runs that train one model go to one worker in
+their order, so that no model is trained twice; a method trained on reference drapes has a group per reference set
+and seed, and the set's later groups start once its first run has built the set; a run whose model is cached only
+loads it and goes to any free worker (:func:`drapebench.reproduce_cost.groups`).
 """
 
 from __future__ import annotations
@@ -275,8 +276,8 @@ def run_all(jobs: list, at: str, say=print, workers: int = 1, runner=run_job) ->
     """Run the unfinished ``jobs`` in order, saying per run its place, what it is and an estimate of the time left
     (:func:`time_left`: each run left at the mean wall time of the finished runs of its kind so far); ``workers`` > 1
     runs that many at once, each worker pinned to its cores (:func:`worker_cpus`) and taking
-    the next group of runs that share a model (:func:`drapebench.reproduce_cost.groups`) in order. Returns the jobs
-    that did not finish."""
+    the next group of runs that share a model (:func:`drapebench.reproduce_cost.groups`) in order, once the run it
+    waits for (its ``after``) has ended. Returns the jobs that did not finish."""
     from concurrent.futures import ThreadPoolExecutor
 
     from drapebench.reproduce_cost import grouped
@@ -290,12 +291,15 @@ def run_all(jobs: list, at: str, say=print, workers: int = 1, runner=run_job) ->
         if job.dir in unplanned:
             say(f"could not plan {job.table}: {job.sweep.experiment} {' '.join(job.overrides)} ({unplanned[job.dir]}); "
                 "it runs on its own and its log will say why")
-    failed, lock, counter, took, waiting = [], threading.Lock(), iter(range(1, len(todo) + 1)), {}, list(todo)
+    failed, lock, counter, took, waiting, ended = [], threading.Lock(), iter(range(1, len(todo) + 1)), {}, list(todo), set()
+    turn = threading.Condition(lock)  # a run has ended: a group waiting for it may start
 
     def one(job: Job, cpus) -> None:
         with lock:
             if _STOPPING.is_set():  # stopped by a signal: the runs left are not started
                 failed.append(job)
+                ended.add(job.dir)
+                turn.notify_all()
                 return
             i = next(counter)
             say(f"[{i}/{len(todo)}] {job.table}: {job.sweep.experiment} {' '.join(job.overrides)}{time_left(took, waiting, trains, workers)}")
@@ -303,6 +307,8 @@ def run_all(jobs: list, at: str, say=print, workers: int = 1, runner=run_job) ->
         t0 = time.monotonic()
         code = runner(job, at, cpus)
         with lock:
+            ended.add(job.dir)
+            turn.notify_all()
             if code == BUSY:
                 failed.append(job)
                 if not _STOPPING.is_set():
@@ -321,14 +327,22 @@ def run_all(jobs: list, at: str, say=print, workers: int = 1, runner=run_job) ->
         with ThreadPoolExecutor(1) as pool:
             pool.submit(in_order).result()
         return failed
-    queue, cpus = iter(group_list), worker_cpus(workers)
+    pending, cpus = list(group_list), worker_cpus(workers)
+
+    def next_group():
+        """The first pending group whose ``after`` run has ended (waiting while none is ready); None when none is left."""
+        with turn:
+            while pending:
+                for group in pending:
+                    after = getattr(group, "after", None)
+                    if after is None or after.dir in ended:
+                        pending.remove(group)
+                        return group
+                turn.wait()
+        return None
 
     def worker(k: int) -> None:
-        while True:
-            with lock:
-                group = next(queue, None)
-            if group is None:
-                return
+        while (group := next_group()) is not None:
             for job in group:
                 one(job, cpus[k])
 
@@ -385,7 +399,7 @@ def main(argv=None) -> int:
     parser.add_argument("--out", type=Path, help="where the tables go (default: reports/, or outputs/reproduce_quick/reports with --quick)")
     parser.add_argument("--runs", type=Path, help="where the runs go (default: outputs/reproduce, or outputs/reproduce_quick/runs)")
     parser.add_argument("--jobs", type=int, default=1, help="runs at once, each pinned to its share of the CPU cores; the runs that share a "
-                        "model or a reference set run on one worker in turn (default 1)")
+                        "model run on one worker in turn, those sharing a reference set after its first run (default 1)")
     parser.add_argument("--archive", type=Path, help="keep every finished run's record (a few kB: its metrics, config and stamp) in this folder, "
                         "and restore from it the runs the runs folder lacks, first; committed, it carries a regeneration over to "
                         "another machine (drapebench/run_archive.py)")

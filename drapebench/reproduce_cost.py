@@ -59,12 +59,22 @@ def _composed(jobs: list):
             yield (job, None, cfg) if isinstance(cfg, Exception) else (job, cfg, None)
 
 
+class Group(list):
+    """Runs (:class:`drapebench.reproduce.Job`) that must run one after another; ``after``: a run of another group
+    that must have ended before this group starts (None: it may start at once)."""
+
+    after = None
+
+
 def groups(jobs: list) -> list:
-    """``jobs`` (:class:`drapebench.reproduce.Job`) in groups that must run one after another, in the order of each
-    group's first job: the runs of a method trained on reference drapes (``needs_reference``) by the reference set
-    they build (data preset, garment, body), the others by the training they load (:func:`training_identity`); a
-    run that trains nothing, or whose training is in the checkpoint cache already (it only loads it), is a group of
-    its own. Run at once, two groups never train one model twice."""
+    """``jobs`` (:class:`drapebench.reproduce.Job`) in :class:`Group` s that must run one after another, in the order
+    of each group's first job: the runs of a method trained on reference drapes (``needs_reference``) by the
+    reference set they build (data preset, garment, body) and their seed, the others by the training they load
+    (:func:`training_identity`); a run that trains nothing, or whose training is in the checkpoint cache already (it
+    only loads it), is a group of its own. A reference set's later groups wait for its first group's first run
+    (``after``), which simulates the set and builds what the method derives from it (a projection of the drapes,
+    say), so that no set is simulated twice; variants of one seed share a group, as they may share a model (a
+    common first stage). Run at once, two groups never train one model twice."""
     return grouped(jobs)[0]
 
 
@@ -73,7 +83,7 @@ def grouped(jobs: list) -> tuple[list, set, dict]:
     training not in the checkpoint cache (the others of its group load it), for an estimate of the time left, and
     {folder: error} of the jobs that could not be planned (their overrides do not compose, their method refuses its
     parameters, their scene cannot be built): each is a group of its own, and its run reports the error."""
-    out, methods, scenes, trains, seen, unplanned = {}, {}, {}, set(), set(), {}
+    out, methods, scenes, trains, seen, unplanned, leaders = {}, {}, {}, set(), set(), {}, {}
     for k, (job, cfg, error) in enumerate(_composed(jobs)):
         try:
             identity = None if cfg is None else _group_identity(cfg, methods, scenes)
@@ -84,7 +94,13 @@ def grouped(jobs: list) -> tuple[list, set, dict]:
         if identity is not None and identity[1] not in seen:
             seen.add(identity[1])
             trains.add(job.dir)
-        out.setdefault(("run", k) if identity is None else identity[0], []).append(job)
+        key = ("run", k) if identity is None else identity[0]
+        if key not in out:
+            out[key] = Group()
+            if key[0] == "reference set":  # waits for the set's first group, if another started it
+                leader = leaders.setdefault(key[:4], job)
+                out[key].after = None if leader is job else leader
+        out[key].append(job)
     return list(out.values()), trains, unplanned
 
 
@@ -100,7 +116,7 @@ def _group_identity(cfg, methods: dict, scenes: dict) -> tuple | None:
         return None
     if method_class(cfg).needs_reference:
         return ("reference set", repr(OmegaConf.to_container(cfg.data, resolve=True)), repr(OmegaConf.to_container(cfg.garment, resolve=True)),
-                cfg.body.name), identity  # fmt: skip
+                cfg.body.name, int(cfg.seed)), identity  # fmt: skip
     return identity, identity
 
 

@@ -296,8 +296,9 @@ def test_the_cost_counts_a_cached_checkpoint_where_the_run_would_load_it():
 
 def test_runs_that_share_a_model_or_a_reference_set_are_grouped_to_run_in_turn(monkeypatch):
     """gaps_table3 with 2 seeds: a group per (method, seed), its 3 test shapes in order; the untrained rows train nothing
-    (a group each); the VAE's runs on one garment share its reference set: one group over methods and seeds; runs
-    whose training is in the checkpoint cache only load it: a group each."""
+    (a group each); the VAE's runs on one garment share its reference set: a group per seed over its methods (which
+    share a VAE), the second seed's waiting for the first run of the first; runs whose training is in the checkpoint
+    cache only load it: a group each, waiting for nothing."""
     import drapebench.reproduce_cost as cost
     from drapebench.reproduce_cost import groups
 
@@ -311,9 +312,13 @@ def test_runs_that_share_a_model_or_a_reference_set_are_grouped_to_run_in_turn(m
     (before,) = untrained("gaps_table3", ("gaps",))
     assert [len(g) for g in groups(_jobs(before))] == [1, 1, 1]
     vae = _jobs(Sweep("vae_table1", ("method=vae,vae_mean_code", "seed=0,1", "motion=kick", "motion.betas=[1.0,-1.0]")))
-    assert len(vae) == 4 and len(groups(vae)) == 1
+    seed = lambda j: next(o for o in j.overrides if o.startswith("seed="))  # noqa: E731
+    first, second = groups(vae)
+    assert len(vae) == 4 and [{seed(j) for j in g} for g in (first, second)] == [{"seed=0"}, {"seed=1"}]
+    assert first.after is None and second.after is first[0] and all(g.after is None for g in found)
     monkeypatch.setattr(cost, "_sealed", lambda cfg, scenes: True)  # every training cached (cached() tests the path)
     assert [len(g) for g in groups(vae)] == [1, 1, 1, 1] and [len(g) for g in groups(jobs)] == [1] * 12
+    assert all(g.after is None for g in groups(vae))
 
 
 def test_a_run_that_cannot_be_planned_is_its_own_group_and_the_rest_still_plan(monkeypatch):
@@ -342,6 +347,40 @@ def test_a_run_that_cannot_be_planned_is_its_own_group_and_the_rest_still_plan(m
     monkeypatch.setattr(cost, "_scene", no_scene)  # a scene that cannot be built: named, with its reference set
     lines = summary(vae)
     assert any(x.startswith("could not build the scene") for x in lines) and any("its scene cannot be built" in x for x in lines)
+
+
+def test_run_all_starts_a_group_only_after_the_run_it_waits_for(tmp_path, monkeypatch):
+    """Two workers and three groups, the second waiting for the first group's first run (a reference set it
+    builds): the third starts at once beside the first, the second only once that run has ended."""
+    import json
+    import threading
+    import time
+
+    import drapebench.reproduce_cost as cost
+    from drapebench.reproduce import run_all
+    from drapebench.reproduce_cost import Group
+
+    jobs = [Job("t", Sweep("x"), (f"k={i}",), tmp_path / str(i)) for i in range(5)]
+    first, second, third = Group(jobs[0:2]), Group(jobs[2:4]), Group(jobs[4:])
+    second.after = jobs[0]
+    monkeypatch.setattr(cost, "grouped", lambda todo: ([first, second, third], set(), {}))
+    events, lock = [], threading.Lock()
+
+    def runner(job, at, cpus):
+        with lock:
+            events.append(("start", job.dir.name))
+        time.sleep(0.3 if job is jobs[0] else 0.05)
+        job.dir.mkdir(parents=True)
+        (job.dir / "metrics.json").write_text("{}")
+        (job.dir / "reproduce.json").write_text(json.dumps({"overrides": list(job.overrides), "commit": "c"}))
+        with lock:
+            events.append(("end", job.dir.name))
+        return 0
+
+    assert run_all(jobs, "c", say=lambda s: None, workers=2, runner=runner) == []
+    assert events.index(("start", "2")) > events.index(("end", "0"))  # waited for the set's first run
+    assert events.index(("start", "4")) < events.index(("end", "0"))  # the free worker took the group that waits for nothing
+    assert sorted(name for kind, name in events if kind == "end") == [str(i) for i in range(5)]
 
 
 def test_run_all_with_two_workers_runs_each_group_in_turn_on_one_worker(tmp_path, monkeypatch):
