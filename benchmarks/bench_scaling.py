@@ -9,7 +9,7 @@ vertex counts come from the garment resolution (2.5 cm to 0.65 cm: about 1k to 1
 100 to 10,000 frames (gensim, about 0.3 s per frame, to 1,000). The reference simulation is not swept (its
 cost per frame is in benchmarks/bench_reference.py).
 
-Run: python benchmarks/bench_scaling.py [--out reports/scaling]   (about 30 min on 2 cores; writes
+Run: python benchmarks/bench_scaling.py [--out reports/scaling]   (about 13 min on 2 idle cores; writes
 <out>.md, <out>.csv and <out>.png)
 """
 
