@@ -97,7 +97,7 @@ def grouped(jobs: list) -> tuple[list, set, dict]:
         key = ("run", k) if identity is None else identity[0]
         if key not in out:
             out[key] = Group()
-            if key[0] == "reference set":  # waits for the set's first group, if another started it
+            if key[0] == "reference set":  # a set's later groups wait for the first run of its first group
                 leader = leaders.setdefault(key[:4], job)
                 out[key].after = None if leader is job else leader
         out[key].append(job)
