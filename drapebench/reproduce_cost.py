@@ -18,8 +18,9 @@ UNKEYED = ("motion", "dtype", "viz", "chunk_frames")  # override keys (prefixes)
 
 
 def training_identity(cfg, methods: dict | None = None) -> tuple | None:
-    """The identity of the training a composed run config ``cfg`` needs, or None when it trains nothing;
-    ``methods`` (method config -> method object) saves constructing a method per run."""
+    """The identity of the training a composed run config ``cfg`` needs, or None when it trains nothing (a method
+    that does not learn, or ``train.epochs`` 0 unless the method fits on reference drapes: it reads them and fits its
+    fixed parts even then); ``methods`` (method config -> method object) saves constructing a method per run."""
     from omegaconf import OmegaConf
 
     from drapebench.experiment import method_class
@@ -29,7 +30,7 @@ def training_identity(cfg, methods: dict | None = None) -> tuple | None:
     if key not in methods:
         methods[key] = method_class(cfg)(OmegaConf.to_container(cfg.method.params, resolve=True))
     method = methods[key]
-    if not method.learns or cfg.train.epochs == 0:
+    if not method.learns or (cfg.train.epochs == 0 and not method.needs_reference):
         return None
     plain = lambda node: repr(OmegaConf.to_container(node, resolve=True))  # noqa: E731
     return (cfg.method.name, plain(cfg.method), plain(cfg.train), plain(cfg.data) if method.needs_reference else "",

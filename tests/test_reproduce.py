@@ -316,6 +316,8 @@ def test_runs_that_share_a_model_or_a_reference_set_are_grouped_to_run_in_turn(m
     first, second = groups(vae)
     assert len(vae) == 4 and [{seed(j) for j in g} for g in (first, second)] == [{"seed=0"}, {"seed=1"}]
     assert first.after is None and second.after is first[0] and all(g.after is None for g in found)
+    untrained_vae = _jobs(Sweep("vae_table1", ("method=vae,vae_mean_code", "seed=0", "motion=kick", "motion.betas=[1.0,-1.0]", "train.epochs=0")))
+    assert [len(g) for g in groups(untrained_vae)] == [2]  # still reads its reference set (--quick): one worker, not two at once
     monkeypatch.setattr(cost, "_sealed", lambda cfg, scenes: True)  # every training cached (cached() tests the path)
     assert [len(g) for g in groups(vae)] == [1, 1, 1, 1] and [len(g) for g in groups(jobs)] == [1] * 12
     assert all(g.after is None for g in groups(vae))
