@@ -356,7 +356,6 @@ def test_run_all_starts_a_group_only_after_the_run_it_waits_for(tmp_path, monkey
     builds): the third starts at once beside the first, the second only once that run has ended."""
     import json
     import threading
-    import time
 
     import drapebench.reproduce_cost as cost
     from drapebench.reproduce import run_all
@@ -366,12 +365,15 @@ def test_run_all_starts_a_group_only_after_the_run_it_waits_for(tmp_path, monkey
     first, second, third = Group(jobs[0:2]), Group(jobs[2:4]), Group(jobs[4:])
     second.after = jobs[0]
     monkeypatch.setattr(cost, "grouped", lambda todo: ([first, second, third], set(), {}))
-    events, lock = [], threading.Lock()
+    events, lock, free_worker_started = [], threading.Lock(), threading.Event()
 
     def runner(job, at, cpus):
         with lock:
             events.append(("start", job.dir.name))
-        time.sleep(0.3 if job is jobs[0] else 0.05)
+        if job is jobs[4]:
+            free_worker_started.set()
+        if job is jobs[0]:  # the set's first run lasts until the other worker has taken a group (or 10 s)
+            free_worker_started.wait(10)
         job.dir.mkdir(parents=True)
         (job.dir / "metrics.json").write_text("{}")
         (job.dir / "reproduce.json").write_text(json.dumps({"overrides": list(job.overrides), "commit": "c"}))
