@@ -13,16 +13,35 @@ def _svd_rotations(M: np.ndarray) -> np.ndarray:
     return u @ vt
 
 
-def test_best_rotations_are_the_svds_polar_factor_with_positive_determinant():
+def _warp_rotations(M: np.ndarray, max_newton: int = 50) -> np.ndarray:
+    from drapebench.geometry import rotation_kernels
+
+    return rotation_kernels.best_rotations(M, max_newton)
+
+
+@pytest.mark.parametrize("rotations", [best_rotations, _warp_rotations], ids=["numpy", "warp"])
+def test_best_rotations_are_the_svds_polar_factor_with_positive_determinant(rotations):
     rng = np.random.default_rng(0)
     M = np.concatenate([rng.standard_normal((500, 3, 3)), np.eye(3) + 0.2 * rng.standard_normal((500, 3, 3))])
     M[:10, :, 2] = (M[:10, :, :2] @ rng.standard_normal((10, 2, 1)))[..., 0]  # rank 2, as a flat 1-ring's covariance
     s = np.linalg.svd(M, compute_uv=False)
     well_posed = (s[:, 1] - s[:, 2] > 1e-3) | (np.linalg.det(M) > 0)  # a reflection with sigma_2 = sigma_3 has no unique answer
-    R = best_rotations(M)
+    R = rotations(M)
     assert np.allclose(np.linalg.det(R), 1.0, atol=1e-12)
     assert np.abs(R - _svd_rotations(M))[well_posed].max() < 1e-8
     assert (np.linalg.det(M) < 0).sum() > 100  # the reflections were tested
+
+
+@pytest.mark.parametrize("rotations", [best_rotations, _warp_rotations], ids=["numpy", "warp"])
+def test_newtons_start_is_the_top_eigenvalue_of_a_flat_one_ring_and_of_a_scaled_rotation(rotations):
+    """The start of Newton's method is exact for the covariances ARAP meets most (a flat 1-ring: rank 2; a rigid
+    or uniformly scaled 1-ring), so one step already gives the rotation there."""
+    rng = np.random.default_rng(1)
+    Q = _svd_rotations(rng.standard_normal((200, 3, 3)))
+    flat = Q @ (np.array([1.0, 0.6, 0.0])[:, None] * _svd_rotations(rng.standard_normal((200, 3, 3))))
+    scaled = 0.3 * Q
+    for M in (flat, scaled):
+        assert np.abs(rotations(M, max_newton=1) - _svd_rotations(M)).max() < 1e-9
 
 
 @pytest.fixture(scope="module")
@@ -99,7 +118,12 @@ def _reference_arap(V, F, b, bc, U, iterations):
     return U
 
 
-def test_sparse_arap_is_the_exact_arap_step(skirt_frame):
+@pytest.mark.parametrize("warp", [True, False], ids=["warp rotations", "numpy rotations (no sim extra)"])
+def test_sparse_arap_is_the_exact_arap_step(skirt_frame, warp, monkeypatch):
+    from drapebench.geometry import arap
+
+    if not warp:
+        monkeypatch.setattr(arap, "_rotation_kernels", lambda: None)
     V, F, b, bc = skirt_frame
     assert np.abs(SparseArapSolver(V, F, b, 2).solve(bc, V) - _reference_arap(V, F, b, bc, V, 2)).max() < 1e-9
 
