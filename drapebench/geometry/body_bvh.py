@@ -25,6 +25,7 @@ warp is set up by :mod:`drapebench.warp_env` (the kernel compiles once per machi
 
 from __future__ import annotations
 
+import threading
 from functools import lru_cache
 from typing import NamedTuple
 
@@ -226,21 +227,43 @@ class _Body:
             self.outer_mesh = wp.Mesh(points=self.points, indices=self.outer_faces)
         else:
             self.outer_face = self.outer_vertex = wp.zeros(0, dtype=wp.int32, device=device)
+        self.posed_at: torch.Tensor | None = None  # the frame (Vb, 3) float64 the meshes are refitted to
+        self.outer_fitted = False
+
+    def pose(self, vertices32: torch.Tensor, vertices64: torch.Tensor) -> None:
+        """Move the meshes to one body frame, (Vb, 3) in float32 (the BVHs) and float64 (the closest points): copied
+        and the BVH refitted, unless it is the frame they already hold (a caller querying one frame again and
+        again, as GenSim's push does after each ARAP step, refits once)."""
+        if self.posed_at is not None and torch.equal(self.posed_at, vertices64):
+            return
+        wp.copy(self.points, wp.from_torch(vertices32, dtype=wp.vec3))
+        wp.copy(self.points64, wp.from_torch(vertices64, dtype=wp.vec3d))
+        self.mesh.refit()
+        self.outer_fitted = False
+        self.posed_at = vertices64.clone()
+
+    def fit_outer(self) -> None:
+        """Refit the outer-surface mesh to the frame :meth:`pose` gave, once per frame."""
+        if not self.outer_fitted:
+            self.outer_mesh.refit()
+            self.outer_fitted = True
 
 
 _BODIES: dict = {}
+_LOCK = threading.Lock()  # the cache of meshes, and the module's kernels loading (or compiling) once, for threads querying at once
 
 
-def _body(faces: np.ndarray, vertices: torch.Tensor, device: str, outer: np.ndarray | None, slot: int = 0) -> _Body:
+def _body(faces: np.ndarray, vertices: torch.Tensor, device: str, outer: np.ndarray | None, slot) -> _Body:
     """The cached warp mesh of this topology (faces (F,3) int64, outer (F,) bool or None) on this
-    device, built on ``vertices``; ``slot`` k > 0 is another copy, for the k-th thread querying frames
-    at the same time."""
+    device, built on ``vertices``; one per ``slot`` (calling thread, k), k the thread of :func:`query`'s own
+    split of the frames: threads that query at the same time each have their own meshes."""
     key = (faces.tobytes(), None if outer is None else outer.tobytes(), vertices.shape[0], device, slot)
-    if key not in _BODIES:
-        if len(_BODIES) >= 8:
-            _BODIES.pop(next(iter(_BODIES)))
-        _BODIES[key] = _Body(faces, vertices, device, outer)
-    return _BODIES[key]
+    with _LOCK:
+        if key not in _BODIES:
+            if len(_BODIES) >= 8:
+                _BODIES.pop(next(iter(_BODIES)))
+            _BODIES[key] = _Body(faces, vertices, device, outer)
+        return _BODIES[key]
 
 
 class BodyQuery(NamedTuple):
@@ -266,7 +289,8 @@ def query(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: torch.T
     vertex over the whole mesh is buried is searched again on the outer faces. The closest face is
     searched in float32 (of two faces within about 1e-7 m of the same distance either may come back);
     the closest point on it is computed in float64. On the CPU the frames are split over
-    ``torch.get_num_threads()`` threads (warp's CPU kernels release the GIL), each with its own mesh.
+    ``torch.get_num_threads()`` threads (warp's CPU kernels release the GIL), each with its own mesh; callers on
+    different threads may query at the same time (each has its own meshes).
     """
     faces = body_faces.detach().cpu().numpy().astype(np.int64)
     outer = None if outer_faces is None else torch.as_tensor(outer_faces).detach().cpu().numpy().astype(bool)
@@ -285,12 +309,10 @@ def query(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: torch.T
     vertex = torch.empty(B, N if nearest_vertex else 0, dtype=torch.int32, device=pts.device)
     redo = torch.zeros(B, N if outer is not None else 0, dtype=torch.int32, device=pts.device)
 
-    def frames(slot: int, chunk: range) -> None:
+    def frames(slot, chunk: range) -> None:
         body = _body(faces, verts32[0].cpu() if device == "cpu" else verts32[0], device, outer, slot)
         for b in chunk:
-            wp.copy(body.points, wp.from_torch(verts32[b], dtype=wp.vec3))
-            wp.copy(body.points64, wp.from_torch(verts[b], dtype=wp.vec3d))
-            body.mesh.refit()
+            body.pose(verts32[b], verts[b])
             q, cp, fb, vb = wp.from_torch(pts[b], dtype=wp.vec3d), wp.from_torch(closest[b], dtype=wp.vec3d), wp.from_torch(face[b]), wp.from_torch(vertex[b])
             wp.launch(_query, dim=N, device=device, inputs=[body.mesh.id, body.points, body.points64, body.faces, q, body.directions,
                                                             wp.from_torch(winding[b]), fb, cp, vb, body.outer_face, body.outer_vertex,
@@ -301,18 +323,21 @@ def query(points: torch.Tensor, body_vertices: torch.Tensor, body_faces: torch.T
                 wp.synchronize_device(device)
             which = torch.nonzero(redo[b]).squeeze(1)
             if len(which):
-                body.outer_mesh.refit()
+                body.fit_outer()
                 wp.launch(_query_outer, dim=len(which), device=device, inputs=[body.outer_mesh.id, body.points, body.points64, body.outer_faces,
                                                                                body.outer_ids, q, wp.from_torch(which), fb, cp, vb])  # fmt: skip
 
+    with _LOCK:
+        _query.module.load(wp.get_device(device))
+    caller = threading.get_ident()  # each calling thread, and each thread of its split, has its own meshes
     n_threads = min(torch.get_num_threads(), B) if device == "cpu" else 1
     if n_threads <= 1:
-        frames(0, range(B))
+        frames((caller, 0), range(B))
     else:
         from concurrent.futures import ThreadPoolExecutor
 
         with ThreadPoolExecutor(n_threads) as pool:
-            list(pool.map(frames, range(n_threads), [range(k, B, n_threads) for k in range(n_threads)]))
+            list(pool.map(frames, [(caller, k) for k in range(n_threads)], [range(k, B, n_threads) for k in range(n_threads)]))
     return BodyQuery(winding, face.long(), closest, vertex.long() if nearest_vertex else None)
 
 
