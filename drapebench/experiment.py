@@ -152,14 +152,19 @@ def checkpoint_path(method, cfg: DictConfig, garment, body, train_cfg: dict | No
     """Where the model ``method`` (built from ``cfg.method.params``) trained under ``cfg`` is cached: the hash of the
     method config, the method's settings_key, the training config (``train_cfg``, default ``cfg.train``), the training
     data's content, the garment (not for a generic method), the body it trains on (``method.trained_body`` of the
-    run's ``body``) and the material."""
+    run's ``body``) and the material. Where the settings_key is a dict of parameters, a ``method.params`` key it leaves
+    out (how a drape is computed, e.g. its arithmetic or threads, not what is trained) is left out of the method
+    config too: setting it loads the model trained without it."""
     train_cfg = OmegaConf.to_container(cfg.train, resolve=True) if train_cfg is None else train_cfg
     data_key = dataset_hash(train_cfg["dataset"]) if train_cfg.get("dataset") else None
     if method.needs_reference:  # trained on the reference set of the `data` preset
         data_key = OmegaConf.to_container(cfg.data, resolve=True)
     scene_garment = None if method.generic else (garment.vertices, garment.faces)  # one model for any garment: not keyed by it
     settings = method.settings_key()
-    return CHECKPOINTS.path(OmegaConf.to_container(cfg.method, resolve=True), *([settings] if settings is not None else []), train_cfg, data_key, scene_garment,
+    method_cfg = OmegaConf.to_container(cfg.method, resolve=True)
+    if isinstance(settings, dict) and isinstance(method_cfg.get("params"), dict):
+        method_cfg["params"] = {k: v for k, v in method_cfg["params"].items() if k in settings}
+    return CHECKPOINTS.path(method_cfg, *([settings] if settings is not None else []), train_cfg, data_key, scene_garment,
                             body_key(method.trained_body(body)), OmegaConf.to_container(cfg.material, resolve=True), prefix=cfg.method.name, suffix=".pt")  # fmt: skip
 
 

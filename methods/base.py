@@ -119,7 +119,9 @@ class DrapingMethod(ABC):
 
     def settings_key(self) -> Any:
         """Settings a trained state depends on beyond ``cfg`` (code defaults resolved), part of the checkpoint
-        key so that changing a default retrains; None (the default) when ``cfg`` says it all."""
+        key so that changing a default retrains; None (the default) when ``cfg`` says it all. A dict of parameters
+        that leaves out some keys of ``cfg`` (inference-only settings) leaves them out of the checkpoint key as well
+        (:func:`drapebench.experiment.checkpoint_path`)."""
         return None
 
     def trained_beta_bound(self) -> Sequence[float] | None:

@@ -862,3 +862,22 @@ def test_a_method_config_without_impl_is_its_names_implementation_everywhere():
 
     cfg = OmegaConf.create({"method": {"impl": None, "name": "gaps"}})
     assert method_impl(cfg) == "gaps" and code_of(method_impl(cfg)) == code_of("gaps") is not None
+
+
+def test_an_inference_setting_loads_the_model_trained_without_it():
+    """GenSim's inference-only keys (its arithmetic, compilation, threads) are left out of the checkpoint key, so typing
+    one loads the trained model instead of training another; a key the model depends on still makes its own."""
+    from omegaconf import OmegaConf
+
+    from drapebench.experiment import checkpoint_path, method_class
+    from drapebench.scene import Scene
+
+    def path(*overrides):
+        cfg = _compose(["method=gensim", "garment=skirt", "body=anny_lowres", *overrides])
+        scene = Scene.from_config(cfg, device="cpu")
+        method = method_class(cfg)(OmegaConf.to_container(cfg.method.params, resolve=True))
+        return checkpoint_path(method, cfg, scene.garment, scene.body)
+
+    plain = path()
+    assert path("method.params.pen_precision=bf16", "method.params.workers=2", "method.params.pen_compile=true") == plain
+    assert path("method.params.latent=32") != plain
