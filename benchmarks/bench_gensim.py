@@ -38,6 +38,7 @@ CONFIGS = {  # name: method.params of the configuration
     "vertex contact": {"contact": "vertex"},
     "compiled": {"pen_compile": True},
     "compiled bf16": {"pen_compile": True, "pen_precision": "bf16"},
+    "compiled, two workers": {"pen_compile": True, "workers": 2},
     "compiled bf16, two workers": {"pen_compile": True, "pen_precision": "bf16", "workers": 2},
 }
 
