@@ -233,7 +233,7 @@ class _Body:
     def pose(self, vertices32: torch.Tensor, vertices64: torch.Tensor) -> None:
         """Move the meshes to one body frame, (Vb, 3) in float32 (the BVHs) and float64 (the closest points): copied
         and the BVH refitted, unless it is the frame they already hold (a caller querying one frame again and
-        again, as GenSim's push does after each ARAP step, refits once)."""
+        again, as a collision push after every step of a solver does, refits once)."""
         if self.posed_at is not None and torch.equal(self.posed_at, vertices64):
             return
         wp.copy(self.points, wp.from_torch(vertices32, dtype=wp.vec3))
