@@ -234,7 +234,7 @@ class _Body:
         """Move the meshes to one body frame, (Vb, 3) in float32 (the BVHs) and float64 (the closest points): copied
         and the BVH refitted, unless it is the frame they already hold (a caller querying one frame again and
         again, as a collision push after every step of a solver does, refits once)."""
-        if self.posed_at is not None and torch.equal(self.posed_at, vertices64):
+        if self.posed_at is not None and self.posed_at.device == vertices64.device and torch.equal(self.posed_at, vertices64):
             return
         wp.copy(self.points, wp.from_torch(vertices32, dtype=wp.vec3))
         wp.copy(self.points64, wp.from_torch(vertices64, dtype=wp.vec3d))
