@@ -11,8 +11,8 @@ then writes the table from those runs and, at the end, ``claims.md`` over the ta
 ``viz=none`` (no recordings: a table needs none).
 
 ``--quick`` is the same pipeline on a tiny scene (the low-resolution body, 8 frames, nothing trained:
-``train.epochs=0``, seed 0; every method of a sweep but only the first value of its other swept keys, so every
-row exists) into ``outputs/reproduce_quick/``, for a check that every table's pipeline runs, not for numbers; the
+``train.epochs=0``, seed 0; a method trained on reference drapes reads four short ones, ``data=quick``; every
+method of a sweep but only the first value of its other swept keys, so every row exists) into ``outputs/reproduce_quick/``, for a check that every table's pipeline runs, not for numbers; the
 benchmark tables (those with ``bench``), timed on their own scenes, are skipped.
 The full command writes into ``reports/`` (``--out`` elsewhere).
 
@@ -44,7 +44,7 @@ from pathlib import Path
 from drapebench.cache import PROJECT_ROOT, atomic_write
 from drapebench.table_specs import Sweep, TableSpec, spec, specs, sweeps
 
-QUICK = ("body=anny_lowres", "motion.n_frames=6", "motion.transition=2", "train.epochs=0", "seed=0")
+QUICK = ("body=anny_lowres", "motion.n_frames=6", "motion.transition=2", "train.epochs=0", "seed=0", "data=quick")
 QUICK_KEEP = ("method",)  # the key whose every value --quick keeps: the table's rows
 RUN = ("viz=none", "hydra.mode=RUN")
 
