@@ -206,7 +206,7 @@ def test_quick_runs_never_enter_the_committed_archive(capsys):
 
 @pytest.mark.slow
 def test_quick_runs_every_table_s_pipeline(tmp_path):
-    """Every table's sweeps on the tiny scene, its table and the claims (about 40 min on 2 busy cores)."""
+    """Every table's sweeps on the tiny scene, its table and the claims (36 min on 2 cores from an empty data folder)."""
     assert main(["--quick", "--runs", str(tmp_path / "runs"), "--out", str(tmp_path / "out")]) == 0
     for name, s in specs().items():
         if s.metrics:
