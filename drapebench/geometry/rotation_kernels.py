@@ -17,22 +17,23 @@ _LOAD_LOCK = threading.Lock()  # a module compiles or loads once, whichever thre
 
 
 @wp.func
+def _others(k: int):
+    """The three indices of 0..3 other than k, in order."""
+    i0, i1, i2 = 1, 2, 3
+    if k > 0:
+        i0 = 0
+    if k > 1:
+        i1 = 1
+    if k > 2:
+        i2 = 2
+    return i0, i1, i2
+
+
+@wp.func
 def _minor(a: wp.mat44d, r: int, c: int) -> wp.float64:
     """Determinant of the 3x3 matrix of ``a`` without row r and column c."""
-    r0, r1, r2 = 1, 2, 3
-    if r > 0:
-        r0 = 0
-    if r > 1:
-        r1 = 1
-    if r > 2:
-        r2 = 2
-    c0, c1, c2 = 1, 2, 3
-    if c > 0:
-        c0 = 0
-    if c > 1:
-        c1 = 1
-    if c > 2:
-        c2 = 2
+    r0, r1, r2 = _others(r)
+    c0, c1, c2 = _others(c)
     return (a[r0, c0] * (a[r1, c1] * a[r2, c2] - a[r1, c2] * a[r2, c1])
             - a[r0, c1] * (a[r1, c0] * a[r2, c2] - a[r1, c2] * a[r2, c0])
             + a[r0, c2] * (a[r1, c0] * a[r2, c1] - a[r1, c1] * a[r2, c0]))  # fmt: skip
