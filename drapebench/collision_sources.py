@@ -1,6 +1,7 @@
 """Where a run's collisions come from: the garment vertices inside the body (what ε_c counts) split by each
 per-vertex mask the method's drape reports in its extras (e.g. which vertices a stage held fixed) and by whether
-they were inside at each earlier stage the extras hold (e.g. a deformation a network then corrects).
+they were inside at each earlier stage in the drape's space (the method's ``displaced_from`` extras, e.g. a
+deformation a network then corrects).
 
 Run: python -m drapebench.collision_sources <run dir> [<run dir> ...]
 
@@ -28,24 +29,24 @@ def signed_distances(points: torch.Tensor, body_vertices: torch.Tensor, body, ch
                       for a in range(0, len(points), chunk)])  # fmt: skip
 
 
-def collision_sources(drape: torch.Tensor, extras: dict, body_vertices: torch.Tensor, body) -> dict:
-    """For a drape (T, V, 3) m on the posed body (T, Vb, 3): {"eps_c": % of vertices inside, "stages": {name: ε_c
-    of each (T, V, 3) extras entry}, "masks": {name: {"share", "eps_c", "share_of_inside"} (%) of each (T, V) bool
-    extras entry}, "inside_at": {stage: % of the drape's inside vertices inside at that stage}, "depth_mm": (median,
-    p90, max) of the inside vertices' depth, or None when none is inside}."""
-    shape = tuple(drape.shape[:2])
-    inside = signed_distances(drape, body_vertices, body) < 0
-    stages = {k: signed_distances(v, body_vertices, body) < 0 for k, v in extras.items() if tuple(v.shape) == (*shape, 3)}
-    masks = {k: v.bool() for k, v in extras.items() if tuple(v.shape) == shape and v.dtype == torch.bool}
+def collision_sources(drape: torch.Tensor, stages: dict, masks: dict, body_vertices: torch.Tensor, body) -> dict:
+    """For a drape (T, V, 3) m on the posed body (T, Vb, 3), earlier ``stages`` {name: (T, V, 3) m, in the drape's
+    space} and per-vertex ``masks`` {name: (T, V) bool}: {"eps_c": % of vertices inside, "stages": {name: its ε_c},
+    "masks": {name: {"share": % of the vertices it holds, "eps_c": % inside among them, "share_of_inside": % of the
+    inside vertices it holds}}, "inside_at": {stage: % of the drape's inside vertices inside at that stage},
+    "depth_mm": (median, p90, max) of the inside vertices' depth, or None when none is inside}."""
+    distance = signed_distances(drape, body_vertices, body)
+    inside = distance < 0
+    at = {k: signed_distances(v, body_vertices, body) < 0 for k, v in stages.items()}
     n_in = max(int(inside.sum()), 1)
     pct = lambda x: 100.0 * float(x)  # noqa: E731
-    depth = -signed_distances(drape, body_vertices, body)[inside] * 1e3
+    depth = (-distance[inside] * 1e3).cpu()
     return {
         "eps_c": pct(inside.double().mean()),
-        "stages": {k: pct(v.double().mean()) for k, v in stages.items()},
+        "stages": {k: pct(v.double().mean()) for k, v in at.items()},
         "masks": {k: {"share": pct(m.double().mean()), "eps_c": pct((inside & m).sum() / max(int(m.sum()), 1)),
                       "share_of_inside": pct((inside & m).sum() / n_in)} for k, m in masks.items()},  # fmt: skip
-        "inside_at": {k: pct((inside & v).sum() / n_in) for k, v in stages.items()},
+        "inside_at": {k: pct((inside & v).sum() / n_in) for k, v in at.items()},
         "depth_mm": tuple(np.percentile(depth.numpy(), [50, 90, 100])) if len(depth) else None,
     }
 
@@ -60,11 +61,13 @@ def main(argv=None) -> None:
         run = load_run(run_dir)
         with torch.inference_mode():
             result = run.method.drape(run.garment, run.seq)
-        first = run.seq.n_transition if run.cfg.eval.skip_transition else 0
-        body_vertices = run.seq.vertices(run.body)[first:]
-        extras = {k: v[first:] for k, v in (result.extras or {}).items() if torch.is_tensor(v) and v.dim() >= 2}
-        found = collision_sources(result.vertices[first:], extras, body_vertices, run.body)
-        print(f"{run_dir}: {run.cfg.method.name} on the {run.garment.kind}, {len(body_vertices)} frames; eps_c {found['eps_c']:.3f} %")
+        n = result.vertices.shape[0]
+        first = run.seq.n_transition if run.cfg.eval.skip_transition and run.seq.n_transition < n else 0  # as the metrics skip it
+        extras = result.extras or {}
+        stages = {k: extras[k][first:] for k in run.method.displaced_from if k in extras}
+        masks = {k: v[first:].bool() for k, v in extras.items() if torch.is_tensor(v) and v.dtype == torch.bool and v.shape[:1] == (n,)}
+        found = collision_sources(result.vertices[first:], stages, masks, run.seq.vertices(run.body)[first:].to(result.vertices.device), run.body)
+        print(f"{run_dir}: {run.cfg.method.name} on the {run.garment.kind}, {n - first} frames; eps_c {found['eps_c']:.3f} %")
         for name, value in found["stages"].items():
             print(f"  stage {name}: eps_c {value:.3f} %; {found['inside_at'][name]:.1f} % of the drape's inside vertices were inside there")
         for name, m in found["masks"].items():

@@ -161,11 +161,18 @@ def checkpoint_path(method, cfg: DictConfig, garment, body, train_cfg: dict | No
         data_key = OmegaConf.to_container(cfg.data, resolve=True)
     scene_garment = None if method.generic else (garment.vertices, garment.faces)  # one model for any garment: not keyed by it
     settings = method.settings_key()
+    return CHECKPOINTS.path(keyed_method_config(method, cfg), *([settings] if settings is not None else []), train_cfg, data_key, scene_garment,
+                            body_key(method.trained_body(body)), OmegaConf.to_container(cfg.material, resolve=True), prefix=cfg.method.name, suffix=".pt")  # fmt: skip
+
+
+def keyed_method_config(method, cfg: DictConfig) -> dict:
+    """``cfg.method`` as a checkpoint's key holds it: where ``method.settings_key()`` is a dict of parameters, without
+    the ``method.params`` keys it leaves out (how a drape is computed, not what is trained)."""
+    settings = method.settings_key()
     method_cfg = OmegaConf.to_container(cfg.method, resolve=True)
     if isinstance(settings, dict) and isinstance(method_cfg.get("params"), dict):
         method_cfg["params"] = {k: v for k, v in method_cfg["params"].items() if k in settings}
-    return CHECKPOINTS.path(method_cfg, *([settings] if settings is not None else []), train_cfg, data_key, scene_garment,
-                            body_key(method.trained_body(body)), OmegaConf.to_container(cfg.material, resolve=True), prefix=cfg.method.name, suffix=".pt")  # fmt: skip
+    return method_cfg
 
 
 def loadable_checkpoint(path: Path, impl: str) -> bool:

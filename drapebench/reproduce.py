@@ -10,10 +10,11 @@ is still running is not started twice), printing its progress and an estimate of
 then writes the table from those runs and, at the end, ``claims.md`` over the tables written. The runs record
 ``viz=none`` (no recordings: a table needs none).
 
-``--quick`` is the same pipeline on a tiny scene (the low-resolution body, 8 frames, nothing trained:
-``train.epochs=0``, seed 0; a method trained on reference drapes reads four short ones, ``data=quick``; every
-method of a sweep but only the first value of its other swept keys, so every row exists) into ``outputs/reproduce_quick/``, for a check that every table's pipeline runs, not for numbers; the
-benchmark tables (those with ``bench``), timed on their own scenes, are skipped.
+``--quick`` is the same pipeline on a tiny scene (the low-resolution body, 8 frames, ``train.epochs=0`` (a
+method's own fixed schedule, such as an autoencoder's, still runs), seed 0; a method trained on reference drapes
+reads four short ones, ``data=quick``; every method of a sweep but only the first value of its other swept keys, so
+every row exists) into ``outputs/reproduce_quick/``, for a check that every table's pipeline runs, not for numbers;
+the benchmark tables (those with ``bench``), timed on their own scenes, are skipped.
 The full command writes into ``reports/`` (``--out`` elsewhere).
 
 ``--jobs N`` runs N runs at once, each pinned to its share of the CPU cores (so that its automatic torch threads

@@ -23,7 +23,7 @@ def training_identity(cfg, methods: dict | None = None) -> tuple | None:
     fixed parts even then); ``methods`` (method config -> method object) saves constructing a method per run."""
     from omegaconf import OmegaConf
 
-    from drapebench.experiment import method_class
+    from drapebench.experiment import keyed_method_config, method_class
 
     methods = {} if methods is None else methods
     key = repr(OmegaConf.to_container(cfg.method, resolve=True))
@@ -33,7 +33,7 @@ def training_identity(cfg, methods: dict | None = None) -> tuple | None:
     if not method.learns or (cfg.train.epochs == 0 and not method.needs_reference):
         return None
     plain = lambda node: repr(OmegaConf.to_container(node, resolve=True))  # noqa: E731
-    return (cfg.method.name, plain(cfg.method), plain(cfg.train), plain(cfg.data) if method.needs_reference else "",
+    return (cfg.method.name, repr(keyed_method_config(method, cfg)), plain(cfg.train), plain(cfg.data) if method.needs_reference else "",
             cfg.body.name, plain(cfg.material), int(cfg.seed), "" if method.generic else plain(cfg.garment))  # fmt: skip
 
 

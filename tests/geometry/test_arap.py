@@ -34,8 +34,8 @@ def test_best_rotations_are_the_svds_polar_factor_with_positive_determinant(rota
 
 @pytest.mark.parametrize("rotations", [best_rotations, _warp_rotations], ids=["numpy", "warp"])
 def test_newtons_start_is_the_top_eigenvalue_of_a_flat_one_ring_and_of_a_scaled_rotation(rotations):
-    """The start of Newton's method is exact for the covariances ARAP meets most (a flat 1-ring: rank 2; a rigid
-    or uniformly scaled 1-ring), so one step already gives the rotation there."""
+    """The start of Newton's method is exact for the covariances ARAP meets most (a flat 1-ring: rank 2; a scaled
+    rotation: an isotropic 1-ring), so one step already gives the rotation there."""
     rng = np.random.default_rng(1)
     Q = _svd_rotations(rng.standard_normal((200, 3, 3)))
     flat = Q @ (np.array([1.0, 0.6, 0.0])[:, None] * _svd_rotations(rng.standard_normal((200, 3, 3))))
