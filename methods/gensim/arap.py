@@ -9,7 +9,6 @@ algorithm that this code takes are listed in ``methods/gensim/README.md``.
 
 from __future__ import annotations
 
-import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,7 +21,6 @@ from drapebench.geometry.proximity import body_vertex_tree, nearest_indices
 from drapebench.geometry.sdf import closest_body_point
 
 CONTACTS = ("surface", "vertex")
-WARP_LOCK = threading.Lock()  # threads draping frames at once take turns on the body queries (body_bvh now gives each thread its own meshes: without the lock, two workers drape about 5 % faster; it goes when GenSim's tables are next made)
 
 
 @dataclass(frozen=True)
@@ -40,7 +38,9 @@ class ArapConfig:
     contact: what the push (Alg. 1 line 10) finds inside the body and moves out: "surface" (the signed
     distance to the body's outer surface, inside by the whole body's winding number, as eps_c counts it;
     a vertex moves onto its closest surface point) or "vertex" (the nearest body vertex's normal distance,
-    a vertex moves onto that vertex's tangent plane); push_margin (m): how far beyond that the push moves it."""
+    a vertex moves onto that vertex's tangent plane); push_margin (m): how far beyond that the push moves it;
+    push_handles: the push also moves the handles' final targets (Alg. 2 line 8) that lie inside the body out
+    (False: as printed, only the free vertices are pushed)."""
 
     eps: float = -0.5
     handle_side: str = "pushed"
@@ -53,6 +53,7 @@ class ArapConfig:
     solver: str = "sparse"
     contact: str = "vertex"
     push_margin: float = 0.0
+    push_handles: bool = False
 
     def __post_init__(self):
         if self.handle_side not in ("pushed", "printed"):
@@ -148,6 +149,10 @@ def motion_aware_arap(template, faces, handles, targets, target_body, target_nor
         f = torch.as_tensor(faces).long()
         edges = torch.unique(torch.cat([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]).sort(dim=1).values, dim=0)
     contact = body_contact(target_body, target_normals, cfg.contact, candidates, body_faces, outer_faces)
+    if cfg.push_handles:  # Alg. 2 line 8 brings a handle to the body: one that lands inside it is put on its surface
+        zeta, n = body_contact(target_body, target_normals, cfg.contact, candidates, body_faces, outer_faces)(goal)  # its own query cache
+        inside = zeta <= 0
+        goal[inside] += (cfg.push_margin - zeta[inside, None]) * n[inside]
     G = template.double().numpy()
     for k in range(1, cfg.n_iterations + 1):
         G = solver.solve(start + (goal - start) * (k / cfg.n_iterations), G)
@@ -189,8 +194,7 @@ def body_contact(body, normals, contact: str, candidates=None, body_faces=None, 
             else:
                 known.update(points=points.copy(), distance=np.zeros(len(points)), normal=np.zeros_like(points))
             if need.any():
-                with WARP_LOCK:
-                    sp = closest_body_point(torch.from_numpy(points[need])[None], verts, body_faces, outer_faces=outer_faces)
+                sp = closest_body_point(torch.from_numpy(points[need])[None], verts, body_faces, outer_faces=outer_faces)
                 known["points"][need], known["distance"][need], known["normal"][need] = points[need], sp.distance[0].numpy(), sp.normal[0].numpy()
             zeta = np.where(need, known["distance"], np.inf)  # outside by at least the distance left
             return zeta, known["normal"].copy()

@@ -74,6 +74,7 @@ class GensimParams:
     arap_solver: Literal["sparse", "libigl"] = "sparse"  # the ARAP backend: sparse (scipy, prefactored; drapebench.geometry.arap) | libigl (the same frame within micrometres)
     contact: Literal["surface", "vertex"] = "surface"  # Eq. 8's distance and Alg. 1's push: surface (signed distance to the body's outer surface, as eps_c counts) | vertex (nearest body vertex and its normal)
     push_margin: float = 1e-5  # m beyond the surface (or tangent plane) that Alg. 1's push moves a vertex: above float32 rounding, so a pushed vertex counts as outside
+    push_handles: bool = True  # Alg. 1's push also moves the handle targets that Alg. 2 line 8 puts inside the body onto its surface; False: only free vertices, as printed
     pen_compile: bool = False  # run PEN under torch.compile at inference (compiled once per process, tens of seconds)
     pen_precision: Literal["fp32", "bf16"] = "fp32"  # PEN's inference arithmetic: fp32 | bf16 (CPU autocast; moves the drape by well under a millimetre, README)
     workers: int = 1  # frames draped at once (threads, each running torch single-threaded); 1: frame by frame on torch's threads
@@ -102,7 +103,7 @@ class GensimParams:
 
 
 INFERENCE_KEYS = ("arap_solver", "pen_compile", "pen_precision", "workers")  # how a drape is computed, not what is trained: outside the checkpoint's key
-ADDED_KEYS = dict(contact="vertex", push_margin=0.0)  # keys newer than some checkpoints, at the behaviour those were trained with
+ADDED_KEYS = dict(contact="vertex", push_margin=0.0, push_handles=False)  # keys newer than some checkpoints, at the behaviour those were trained with
 
 
 def gensim_params(cfg: Mapping[str, Any] | None) -> dict:

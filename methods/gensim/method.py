@@ -22,7 +22,7 @@ from drapebench.progress import progress
 from drapebench.train import Objective, train, train_config
 from methods.base import DrapeResult, DrapingMethod, FitReport
 from methods.gensim import losses
-from methods.gensim.arap import WARP_LOCK, ArapConfig, Binding, bind, front_aligned, handle_targets, motion_aware_arap, skinned_template
+from methods.gensim.arap import ArapConfig, Binding, bind, front_aligned, handle_targets, motion_aware_arap, skinned_template
 from methods.gensim.config import ADDED_KEYS, INFERENCE_KEYS, gensim_params
 from methods.gensim.network import PEN
 
@@ -100,7 +100,8 @@ class GenSim(DrapingMethod):
         self.p = gensim_params(self.cfg)
         self.arap = ArapConfig(self.p["eps"], self.p["handle_side"], self.p["pin_rule"], self.p["arap_steps"], self.p["arap_iterations"],
                                handle_smoothing=self.p["handle_smoothing"], push_smoothing=self.p["push_smoothing"], solver=self.p["arap_solver"],
-                               contact=self.p["contact"], push_margin=float(self.p["push_margin"]))  # fmt: skip
+                               contact=self.p["contact"], push_margin=float(self.p["push_margin"]),
+                               push_handles=bool(self.p["push_handles"]))  # fmt: skip
         self.net = None
         self._compiled = None
         self.fabric = None
@@ -168,8 +169,7 @@ class GenSim(DrapingMethod):
         if self.p["body_query"] == "vertex":
             nn = nearest_body_vertex(G, body_vertices, body_normals)
             return nn.point, nn.normal
-        with WARP_LOCK:
-            sp = closest_body_point(G, body_vertices, self.body.faces, outer_faces=self.body.outer_faces)
+        sp = closest_body_point(G, body_vertices, self.body.faces, outer_faces=self.body.outer_faces)
         return sp.point, sp.normal
 
     def pen(self, graph: GarmentGraph, G, d, body_vertices, body_normals, betas, geometry=None, inference: bool = False) -> tuple[torch.Tensor, torch.Tensor]:

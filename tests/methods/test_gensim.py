@@ -338,6 +338,25 @@ def test_the_arap_push_moves_an_inside_vertex_onto_the_body_surface():
     assert not inside_body(x[None, 1:], v[None], f).any()  # beyond float32 rounding: counted outside, as eps_c counts
 
 
+def test_push_handles_puts_a_handle_target_inside_the_body_on_its_surface():
+    """Alg. 2 line 8 can put a handle's target inside the body; with push_handles its target moves onto the
+    surface (the free vertices follow), as printed it stays inside."""
+    v, f, n = _cube()
+    template = torch.tensor([[0.0, 0.0, 1.05], [0.1, 0.0, 1.05], [0.0, 0.1, 1.05], [0.1, 0.1, 1.05]])  # 5 cm above the top face
+    faces = torch.tensor([[0, 1, 3], [0, 3, 2]])
+    handles = torch.tensor([True, False, False, False])
+    targets = template.clone()
+    targets[0, 2] = 0.98  # 2 cm inside the top face
+    outer = torch.ones(len(f), dtype=torch.bool)
+    cfg = ArapConfig(n_iterations=2, contact="surface", push_margin=1e-5)
+    printed = motion_aware_arap(template, faces, handles, targets, v, n, cfg, body_faces=f, outer_faces=outer)
+    assert inside_body(printed[None, :1], v[None], f).all()  # as printed: the handle is held inside
+    pushed = motion_aware_arap(template, faces, handles, targets, v, n, ArapConfig(n_iterations=2, contact="surface", push_margin=1e-5,
+                               push_handles=True), body_faces=f, outer_faces=outer)  # fmt: skip
+    assert torch.allclose(pushed[0], torch.tensor([0.0, 0.0, 1.0 + 1e-5]), atol=1e-6)  # onto the face, straight up
+    assert not inside_body(pushed[None], v[None], f).any()
+
+
 def test_surface_contact_requeries_only_the_points_that_may_have_crossed_the_surface():
     from drapebench.geometry.sdf import closest_body_point
     from methods.gensim.arap import body_contact
