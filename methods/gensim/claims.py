@@ -64,9 +64,9 @@ MORE_CLAIMS = [
     Claim("gensim_nitr1_collides", "GenSim Sec. 3.1", "moving the handles in one step (nitr = 1) leaves the ARAP result "
           "colliding more than nitr = 10", "\"t = 1.0 and nitr = 1, leads to significant collision with the underlying body\" "
           "(no number)", "untested", table="gensim_pen",
-          why="ε_c cannot respond: Alg. 1 pushes every free vertex inside the body out after each step, so what ε_c counts "
-          "after it is the handles left inside, the same for one step and ten (gensim_pen's gensim_arap_nitr1 and gensim_arap "
-          "rows agree to 0.001 points while their energies differ up to 2.5x); the paper's collision is cloth pushed out on "
+          why="ε_c cannot respond: Alg. 1 pushes every free vertex inside the body out after each step, and the handles' "
+          "targets before the first (push_handles), so ε_c after it is about 0 for one step and ten (gensim_pen's "
+          "gensim_arap_nitr1 and gensim_arap rows: 0.000-0.002 % while their energies differ up to 2.5x); the paper's collision is cloth pushed out on "
           "the wrong side of a limb, which needs a measure of the side a vertex ends on (e.g. its distance to its skinned "
           "position), not built here"),
     Claim("gensim_runtime_split", "GenSim Sec. 4", "ARAP takes about two thirds of GenSim's inference time, PEN one third: "
