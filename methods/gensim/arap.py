@@ -135,7 +135,8 @@ def handle_targets(binding: Binding, template, canonical_body, target_body, targ
 def motion_aware_arap(template, faces, handles, targets, target_body, target_normals, cfg: ArapConfig, candidates=None,
                       body_faces=None, outer_faces=None) -> torch.Tensor:  # fmt: skip
     """Alg. 1: (V, 3) deformed garment. Handles (V,) bool move from the template (V, 3) to ``targets``
-    (V, 3) in ``cfg.n_iterations`` equal steps; after each ARAP solve the non-handle vertices inside the
+    (V, 3) in ``cfg.n_iterations`` equal steps (with ``cfg.push_handles`` a target inside the body first moves
+    out as the push below moves a vertex); after each ARAP solve the non-handle vertices inside the
     front-aligned target body (Vb, 3) move out (``cfg.contact``: onto the closest point of the body's
     surface, which needs ``body_faces`` (Fb, 3) and its ``outer_faces`` (Fb,) bool; or by the nearest body
     vertex's normal distance zeta <= 0 along its normal (``target_normals`` (Vb, 3), body vertices
