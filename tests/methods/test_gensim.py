@@ -13,6 +13,7 @@ from drapebench.geometry.sdf import inside_body
 from drapebench.physics import Material
 from methods.gensim import losses
 from methods.gensim.arap import ArapConfig, bind, front_aligned, handle_targets, motion_aware_arap, neighbour_mean, skinned_template
+from methods.gensim.config import ADDED_KEYS
 from methods.gensim.network import PEN, displacement_direction, local_frame_displacement, tangent_basis
 from drapebench.geometry.topology import get_topology
 from tests.meshes import grid_mesh
@@ -439,6 +440,12 @@ def test_one_model_drapes_any_garment_and_round_trips_its_state(trained, body_lo
         other = methods.get("gensim")({**TINY, "latent": 8})
         other.bind(body_lowres, Material())
         other.load_state_dict(m.state_dict())
+    older = {**m.state_dict(), "params": {k: v for k, v in m.state_dict()["params"].items() if k not in ADDED_KEYS}}
+    with pytest.raises(ValueError, match="trained with"):  # a checkpoint older than a key: trained with its old behaviour
+        again.load_state_dict(older)
+    before = methods.get("gensim")({**TINY, **ADDED_KEYS})  # e.g. push_handles false: the handles as printed
+    before.bind(body_lowres, Material())
+    before.load_state_dict(older)
 
 
 def test_a_fixed_training_body_makes_one_checkpoint_for_every_run_body(body_lowres):
