@@ -35,7 +35,7 @@ from drapebench.scene import Scene
 from drapebench.schema import check_keys, choice
 from drapebench.staleness import code_of, trained_by_changed_code
 from drapebench.tracker import track_run
-from drapebench.train.checkpoint import write_losses
+from drapebench.train.trainer import write_logs
 
 log = logging.getLogger("drapebench")
 
@@ -245,12 +245,8 @@ def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir
 
 def _write_fit_logs(log_dir: Path | None, history: list[dict], evaluations: list[dict]) -> None:
     """``losses.csv`` and ``evaluations.csv`` of a fit into ``log_dir`` (those with rows; nothing without a log_dir)."""
-    if log_dir is None:
-        return
-    if history:
-        write_losses(log_dir / "losses.csv", history)
-    if evaluations:
-        write_losses(log_dir / "evaluations.csv", evaluations)
+    if log_dir is not None:
+        write_logs(log_dir, history, evaluations)
 
 
 def _metrics_code_hash() -> str:

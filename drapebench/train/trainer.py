@@ -244,9 +244,11 @@ def _grad_norm(params: list[torch.Tensor]) -> float:
 
 
 def write_logs(log_dir: str | Path, history: list[dict], evaluations: list[dict]) -> None:
-    """``losses.csv`` (one row per step) and, with evaluations, ``evaluations.csv`` (one row per epoch) into ``log_dir``."""
+    """``losses.csv`` (one row per step) and, with evaluations, ``evaluations.csv`` (one row per epoch) into ``log_dir``;
+    a log without rows (a run of 0 steps) is not written: a file of no columns is no table."""
     log_dir = Path(log_dir)
     log_dir.mkdir(parents=True, exist_ok=True)
-    write_losses(log_dir / "losses.csv", history)
+    if history:
+        write_losses(log_dir / "losses.csv", history)
     if evaluations:
         write_losses(log_dir / "evaluations.csv", evaluations)

@@ -70,6 +70,13 @@ def test_losses_csv_has_a_row_per_step_with_each_term(tmp_path):
     assert not list((tmp_path / "ckpt").glob("*.pt"))  # the resumable state is removed when training ends
 
 
+def test_a_training_of_no_steps_writes_no_loss_log(tmp_path):
+    """An untrained row (``train.epochs=0``) once left a losses.csv of no columns, which MLflow's tracker could not
+    read, so the run went untracked."""
+    res, _ = _run(tmp_path, budget={**BUDGET, "steps": 0})
+    assert res.n_steps == 0 and not (tmp_path / "losses.csv").exists()
+
+
 @device_params
 def test_an_interrupted_run_resumes_from_its_checkpoint_and_ends_where_an_uninterrupted_run_ends(tmp_path, device):
     whole, params = _run(tmp_path / "a", device=device)
