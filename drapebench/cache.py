@@ -8,13 +8,15 @@ the file is written through :func:`atomic_write` and sealed with a SHA-256 sidec
 foreign, interrupted) is never read: it is rebuilt with a warning naming it. A sidecar rather
 than an embedded header keeps every format (npz, npy, pickle, torch, h5) readable by its own
 library and checks the whole file, whatever the reader would have noticed. Inside
-:func:`forcing` every entry is rebuilt the first time a run asks for it.
+:func:`forcing` every entry is rebuilt the first time a run asks for it. Two processes that ask for one missing
+entry at once build it once: the second waits (:meth:`Cache.building`) and reads what the first stored.
 """
 
 from __future__ import annotations
 
 import contextlib
 import contextvars
+import fcntl
 import hashlib
 import json
 import logging
@@ -279,6 +281,30 @@ class Cache:
         path.unlink(missing_ok=True)
         _seal_path(path).unlink(missing_ok=True)
 
+    @contextlib.contextmanager
+    def building(self, path: str | os.PathLike) -> Iterator[bool]:
+        """Hold the entry ``path``'s build lock (an exclusive lock on a file of ``data/cache/.locks/`` named by the
+        entry's path) while the body looks the entry up and builds it; yields whether another process held it first
+        (it may have stored the entry meanwhile: look again). Where the lock cannot be created, no lock is taken."""
+        path = Path(path)
+        try:
+            handle = open(cache_dir(".locks") / f"{content_hash(str(path.resolve()))}.lock", "a")
+        except OSError:
+            yield False
+            return
+        with handle:
+            try:
+                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                waited = False
+            except BlockingIOError:
+                log.info("%s cache: another process is building %s; waiting for it", self.kind, path.name)
+                fcntl.flock(handle, fcntl.LOCK_EX)
+                waited = True
+            try:
+                yield waited
+            finally:
+                fcntl.flock(handle, fcntl.LOCK_UN)
+
     def get_or_build(
         self,
         path: str | os.PathLike,
@@ -290,10 +316,15 @@ class Cache:
         enabled: bool = True,
     ) -> Any:
         """The entry at ``path`` if it loads (see :meth:`load`), else ``build()`` stored with
-        ``write(value, tmp_path)``; ``enabled=False`` builds without reading or writing."""
-        value = self.load(path, read, force) if enabled else None
+        ``write(value, tmp_path)``, built once when processes ask at once (:meth:`building`); ``enabled=False``
+        builds without reading or writing."""
+        if not enabled:
+            return build()
+        value = self.load(path, read, force)
         if value is None:
-            value = build()
-            if enabled:
-                self.store(path, lambda tmp: write(value, tmp))
+            with self.building(path) as waited:
+                value = self.load(path, read) if waited else None  # stored by the process that held the lock
+                if value is None:
+                    value = build()
+                    self.store(path, lambda tmp: write(value, tmp))
         return value

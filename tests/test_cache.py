@@ -94,6 +94,35 @@ def test_forcing_rebuilds_each_entry_once_and_force_always(tmp_path):
     assert len(built) == 3
 
 
+
+def _slow_build(path: str, log: str) -> None:
+    """A process asking for the entry ``path``, whose build takes 1 s and appends a line to ``log``."""
+    import time
+
+    def build():
+        with open(log, "a") as f:
+            f.write("built\n")
+        time.sleep(1.0)
+        return {"x": np.arange(3)}
+
+    value = Cache("lockdemo", 1).get_or_build(path, build, _pickle_write, _pickle_read)
+    assert value["x"].tolist() == [0, 1, 2]
+
+
+def test_two_processes_asking_for_one_missing_entry_build_it_once(tmp_path):
+    """Two reproduce workers once relaxed the same GAPS canonical garment side by side (about 30 s each)."""
+    import multiprocessing
+
+    path, log = str(tmp_path / "entry.pkl"), str(tmp_path / "builds.txt")
+    ctx = multiprocessing.get_context("spawn")
+    workers = [ctx.Process(target=_slow_build, args=(path, log)) for _ in range(2)]
+    for w in workers:
+        w.start()
+    for w in workers:
+        w.join(60)
+    assert [w.exitcode for w in workers] == [0, 0]
+    assert open(log).read() == "built\n"
+
 # ---- every kind of cache file in the suite, through its real code path ------------------------------
 
 

@@ -36,6 +36,8 @@ is simulated again.
 
 from __future__ import annotations
 
+import contextlib
+
 import json
 import logging
 import re
@@ -527,31 +529,44 @@ def simulate_record(
         raise ValueError(f"garment {garment.name!r} pins index vertex {int(garment.pins.max())} of {garment.n_vertices}")
     t0 = time.perf_counter()
     cfg, path = _resolve(garment, seq, body, material, cfg)
-    hit = REFERENCES.load(path, _reader((seq.n_frames, garment.n_vertices, 3)), force) if cache else None
+    hit = _cached(path, garment, seq, body, cfg, force, t0) if cache else None
     if hit is not None:
-        verts, meta = hit
-        shares = meta["stats"].get("inside_share")  # per frame, from the simulation; computed for older entries
-        if shares is None:
-            shares = [inside_share(x, b, body.faces) for x, b in zip(verts, seq.vertices(body).double().numpy())]
-        failed = find_snag(verts, garment, bool(cfg.pins), float(seq.fps)) or find_inside(shares, float(seq.fps))
-        if failed is None:
-            return SimulationRecord(torch.from_numpy(verts), meta["timings_s"], cfg, True, time.perf_counter() - t0,
-                                    str(path), meta["stats"])  # fmt: skip
-        log.warning("the cached reference %s fails its checks at frame %d (%s); simulating it again", path.name, *failed)
-    if cache and not force:
-        _raise_recorded_failure(path)
-    try:
-        verts, timings, stats = _run_with_retries(garment, seq, body, material, cfg, progress)
-    except SimulationDiverged as err:
+        return hit
+    with REFERENCES.building(path) if cache else contextlib.nullcontext(False) as waited:
+        hit = _cached(path, garment, seq, body, cfg, False, t0) if waited else None  # simulated by the process that held the lock
+        if hit is not None:
+            return hit
+        if cache and not force:
+            _raise_recorded_failure(path)
+        try:
+            verts, timings, stats = _run_with_retries(garment, seq, body, material, cfg, progress)
+        except SimulationDiverged as err:
+            if cache:
+                _record_failure(path, err)
+            raise
         if cache:
-            _record_failure(path, err)
-        raise
-    if cache:
-        meta = {"timings_s": timings, "stats": stats, "settings": cfg.to_dict(), "garment": garment.name,
-                "sequence": seq.name, "material": material.to_dict()}  # fmt: skip
-        REFERENCES.store(path, lambda tmp: _write_record((verts, meta), tmp))
+            meta = {"timings_s": timings, "stats": stats, "settings": cfg.to_dict(), "garment": garment.name,
+                    "sequence": seq.name, "material": material.to_dict()}  # fmt: skip
+            REFERENCES.store(path, lambda tmp: _write_record((verts, meta), tmp))
     return SimulationRecord(torch.from_numpy(verts), timings, cfg, False, time.perf_counter() - t0,
                             str(path) if cache else None, stats)  # fmt: skip
+
+
+def _cached(path: Path, garment, seq, body, cfg, force: bool, t0: float) -> SimulationRecord | None:
+    """The cached simulation at ``path`` as a record (``from_cache`` True), or None when there is none or it fails
+    the snag and inside checks (with a warning: it is simulated again)."""
+    hit = REFERENCES.load(path, _reader((seq.n_frames, garment.n_vertices, 3)), force)
+    if hit is None:
+        return None
+    verts, meta = hit
+    shares = meta["stats"].get("inside_share")  # per frame, from the simulation; computed for older entries
+    if shares is None:
+        shares = [inside_share(x, b, body.faces) for x, b in zip(verts, seq.vertices(body).double().numpy())]
+    failed = find_snag(verts, garment, bool(cfg.pins), float(seq.fps)) or find_inside(shares, float(seq.fps))
+    if failed is None:
+        return SimulationRecord(torch.from_numpy(verts), meta["timings_s"], cfg, True, time.perf_counter() - t0, str(path), meta["stats"])
+    log.warning("the cached reference %s fails its checks at frame %d (%s); simulating it again", path.name, *failed)
+    return None
 
 
 def simulate(
