@@ -37,7 +37,6 @@ is simulated again.
 from __future__ import annotations
 
 import contextlib
-
 import json
 import logging
 import re
