@@ -204,6 +204,7 @@ def test_quick_runs_never_enter_the_committed_archive(capsys):
     assert "would enter the committed archive" in capsys.readouterr().err
 
 
+@pytest.mark.pipeline
 def test_quick_runs_every_table_s_pipeline(tmp_path):
     """Every table's sweeps on the tiny scene, its table and the claims, a run per core: a table whose pipeline breaks
     goes red in CI (about 15 min on 2 cores from the session's empty data folder)."""
