@@ -237,9 +237,10 @@ def collision_aware_kext(
 
     ``distance`` (B, V) signed normal distance to the nearest body vertex (m); returns (B, V) in
     [1, 1 + cap ramp_epochs] (theirs: [1, 4], reached for d <= eps - cap/rate = -1 mm after 100 epochs).
-    Not differentiated (their code treats it as a constant of the loss).
+    Differentiable in ``distance`` where 0 < rate d_c < cap, as in their code (whose distance n_b . (x - v_b)
+    carries the garment's gradient); pass a detached distance for a factor held constant.
     """
-    d_c = torch.relu(eps - distance.detach())
+    d_c = torch.relu(eps - distance)
     return 1.0 + torch.clamp(rate * d_c, max=cap) * min(epoch, ramp_epochs)
 
 

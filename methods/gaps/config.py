@@ -55,6 +55,7 @@ class GapsParams:
     normalisation: Literal["code", "batch"] = "code"  # code: per-frame terms / (B x W), collision and inertia / B | batch: every term / B
     inextensibility_weight: float = 2e8
     kext: Literal["collision", "one"] = "collision"
+    kext_gradient: bool = True  # k_ext differentiated through the body distance n . (x - p), as the code's | false: held constant
     collision_weight: float = 250.0
     collision_eps: float = 2e-3
     collision_distance: Literal["surface", "vertex"] = "surface"  # surface: exact signed distance to the body mesh | vertex: nearest body vertex (the code)
@@ -83,7 +84,7 @@ class GapsParams:
 
 ADDED_KEYS = dict(canonical="template", relax_grid=(-2.0, 0.0, 2.0), relax_components=2, relax_iterations=200, relax_clearance=2e-3,
                   relax_inextensibility_weight=None, bending_scale="rest", bending_blend="distance",
-                  output_basis="dense", basis_modes=128)  # keys newer than some checkpoints, at the behaviour those were trained with
+                  output_basis="dense", basis_modes=128, kext_gradient=False)  # keys newer than some checkpoints, at the behaviour those were trained with
 
 
 @dataclass(frozen=True)

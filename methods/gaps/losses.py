@@ -70,10 +70,18 @@ def inertia(xw: torch.Tensor, topo, material) -> torch.Tensor:
 PAPER_KEXT_EPOCHS = 100  # GAPS Eq. 16: k_ext = 1 + min(10 d_c, 0.03) min(epoch, 100), at most 4
 
 
+def contact_distance(x: torch.Tensor, nn) -> torch.Tensor:
+    """(B*W, V) m: each vertex of x (B*W, V, 3) m along the body normal from its body point, n . (x - p), with
+    ``nn.point`` and ``nn.normal`` held constant: ``nn.distance``'s value, with the gradient n in x (the GAPS
+    code's distance, which k_ext is differentiated through)."""
+    return ((x - nn.point.detach()) * nn.normal.detach()).sum(-1)
+
+
 def extension_factor(distance: torch.Tensor, epoch: int, mode: str, eps: float, ramp_epochs: int) -> torch.Tensor:
     """k_ext per vertex (B*W, V) from the signed body distance (m): GAPS Eq. 16 for ``mode`` "collision"
     with the paper's 100-epoch ramp compressed into ``ramp_epochs`` (the same cap, 4, reached at
-    ``ramp_epochs``), 1 everywhere for "one" (a (1,) tensor)."""
+    ``ramp_epochs``), 1 everywhere for "one" (a (1,) tensor). Differentiable in ``distance`` (detach it for a
+    constant factor)."""
     if mode == "collision":
         paper_epoch = PAPER_KEXT_EPOCHS * min(epoch, ramp_epochs) / ramp_epochs
         return collision_aware_kext(distance, paper_epoch, eps, ramp_epochs=PAPER_KEXT_EPOCHS)
@@ -88,7 +96,8 @@ def inextensibility(x: torch.Tensor, topo, k_ext: torch.Tensor, n: int, weight: 
 
 def loss_terms(x: torch.Tensor, window: int, nn, topo, material, p: dict, epoch: int, blend: torch.Tensor) -> tuple[dict, torch.Tensor | None]:
     """GAPS's named, weighted loss terms of one batch x (B*W, V, 3) under parameters ``p``
-    (:func:`methods.gaps.config.gaps_params`) at ``epoch``; also k_ext (None without inextensibility).
+    (:func:`methods.gaps.config.gaps_params`) at ``epoch``; also k_ext (None without inextensibility), differentiated
+    through the body distance with ``kext_gradient`` (the code), else held constant.
     ``p["normalisation"]`` "code" divides the per-frame terms by the B x W frames and collision and inertia by
     the B windows (the public code); "batch" divides every term by B."""
     B = x.shape[0] // window
@@ -102,6 +111,7 @@ def loss_terms(x: torch.Tensor, window: int, nn, topo, material, p: dict, epoch:
     }
     k_ext = None
     if p["inextensibility_weight"] > 0:
-        k_ext = extension_factor(nn.distance, epoch, p["kext"], p["collision_eps"], p["train"]["kext_ramp_epochs"])
+        distance = contact_distance(x, nn) if p["kext_gradient"] else nn.distance.detach()
+        k_ext = extension_factor(distance, epoch, p["kext"], p["collision_eps"], p["train"]["kext_ramp_epochs"])
         terms["inext"] = inextensibility(x, topo, k_ext, frames, p["inextensibility_weight"])
     return terms, k_ext

@@ -167,3 +167,33 @@ def test_gaps_defaults_bend_as_the_code():
     assert (p["bending_scale"], p["bending_blend"]) == ("edge", "normal")
     assert (ADDED_KEYS["bending_scale"], ADDED_KEYS["bending_blend"]) == ("rest", "distance")
     assert gaps_params({"bending_scale": "rest", "bending_blend": "distance"})["bending_scale"] == "rest"
+
+
+def test_k_ext_follows_the_garment_in_the_gradient_as_in_the_code(sheet, plane):
+    """k_ext (Eq. 16) is a function of each vertex's body distance; the GAPS code differentiates it through that
+    distance, so L_inext's gradient is the derivative of its value with k_ext recomputed where the vertices move
+    (a central difference along a random direction). Held constant (``kext_gradient: false``, this suite's earlier
+    reading) the gradient misses that part: near the body it would not see that moving into the band raises k_ext."""
+    rest, topo = sheet
+    g = torch.Generator().manual_seed(3)
+    x = rest[None].repeat(W, 1, 1) + 1e-3 * torch.randn(W, *rest.shape, generator=g, dtype=rest.dtype)
+    x[..., 2] = -0.8e-3 + 2.6e-3 * torch.rand(x.shape[:2], generator=g, dtype=x.dtype)  # inside the ramp: 0 < 10 d_c < 0.03
+    blend = torch.zeros(topo.hinge_edges.shape[0], dtype=x.dtype)
+    v = torch.randn(x.shape, generator=g, dtype=x.dtype)
+    h = 1e-8
+
+    def inext(y, p):
+        return losses.loss_terms(y, W, near(y, plane), topo, MAT, p, 3, blend)[0]["inext"]
+
+    for follows in (True, False):
+        p = gaps_params({"train": {"kext_ramp_epochs": 3}, "kext_gradient": follows})
+        y = x.clone().requires_grad_(True)
+        (grad,) = torch.autograd.grad(inext(y, p), y)
+        with torch.no_grad():
+            numeric = (inext(x + h * v, p) - inext(x - h * v, p)) / (2 * h)
+        analytic = (grad * v).sum()
+        if follows:
+            assert torch.isclose(analytic, numeric, rtol=1e-4), (float(analytic), float(numeric))
+        else:
+            assert not torch.isclose(analytic, numeric, rtol=0.05), (float(analytic), float(numeric))
+    assert gaps_params(None)["kext_gradient"], "the default follows the code"
