@@ -6,7 +6,8 @@ then every method's ``MORE_CLAIMS`` (:mod:`drapebench.plugins`)."""
 
 from drapebench.claim import RUNTIME, Claim
 
-GARMENTS = ("tshirt", "dress", "skirt", "gown")  # the paper's Table 1 and 2 garments, all in the committed tables
+GARMENTS = ("tshirt", "dress", "skirt", "gown")  # the paper's Table 1 garments, all in the committed table
+GARMENTS_T2 = ("tshirt", "dress", "skirt")  # Table 2's claims; the gown's Table 2 claim is gaps_t2_gown
 T1 = dict(table="gaps_table1")
 T2 = dict(table="gaps_table2")
 T3 = dict(table="gaps_table3")
@@ -44,13 +45,13 @@ CLAIMS = [
     # GAPS Table 2 (eps_c in %)
     Claim("gaps_t2_kext1_more_collisions", "GAPS Table 2", "ε_c: k_ext = 1 above GAPS on every garment",
           "GAPS (k_ext = 1) 5.191 / 5.572 / 2.992 / 7.027 vs GAPS 0.116 / 0.196 / 0.026 / 0.123", "order", metrics=("ε_c (%)",),
-          greater=[("gaps_kext1", "gaps")], groups=GARMENTS, notes=(KEXT,), **T2, control=("gaps_untrained",)),
+          greater=[("gaps_kext1", "gaps")], groups=GARMENTS_T2, notes=(KEXT,), **T2, control=("gaps_untrained",)),
     Claim("gaps_t2_no_inext_more_collisions", "GAPS Table 2", "ε_c: without L_inext above GAPS on every garment",
           "GAPS without L_inext 5.344 / 5.924 / 3.105 / 7.580 vs GAPS 0.116 / 0.196 / 0.026 / 0.123", "order", metrics=("ε_c (%)",),
-          greater=[("gaps_no_inext", "gaps")], groups=GARMENTS, **T2, control=("gaps_untrained",)),
+          greater=[("gaps_no_inext", "gaps")], groups=GARMENTS_T2, **T2, control=("gaps_untrained",)),
     Claim("gaps_t2_no_inext_above_kext1", "GAPS Table 2", "ε_c: without L_inext above k_ext = 1 on every garment",
           "5.344 / 5.924 / 3.105 / 7.580 vs 5.191 / 5.572 / 2.992 / 7.027", "order", metrics=("ε_c (%)",),
-          greater=[("gaps_no_inext", "gaps_kext1")], groups=GARMENTS, notes=(KEXT,), **T2, control=("gaps_untrained",), credited="gaps_kext1"),
+          greater=[("gaps_no_inext", "gaps_kext1")], groups=GARMENTS_T2, notes=(KEXT,), **T2, control=("gaps_untrained",), credited="gaps_kext1"),
     # GAPS Table 3 (dress; eps_e / eps_a in %)
     Claim("gaps_t3_inext_lowers_strain", "GAPS Table 3", "ε_e and ε_a: GAPS below no-L_inext on every body",
           "avg 3.05 / 3.83 vs 3.84 / 5.13; chubby 4.32 / 5.06 vs 4.38 / 5.54; obese 6.41 / 6.44 vs 6.43 / 6.94",
