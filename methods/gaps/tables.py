@@ -7,7 +7,7 @@ from drapebench.table_specs import ONE_THREAD, SEEDS, Sweep, TableSpec, untraine
 NO_INEXT_OPTIMUM = ("method=gaps_optimum", "method.name=gaps_no_inext_optimum", "method.params.inextensibility_weight=0.0",
                     "method.params.relax_inextensibility_weight=2.0e+8")  # fmt: skip
 
-# the held-out tables: vertex error, strain and collisions against the untrained skinning, and the loss gap closed
+# the held-out tables (a column group per held-out motion and body shape): vertex error, strain and collisions against the untrained skinning, and the loss gap closed
 HELDOUT_METRICS = ("vertex_error_mm", "vertex_error_mm@untrained", "eps_e", "eps_e@untrained", "eps_c", "eps_c@postprocessed", "loss_gap_closed")
 
 TABLES = [
@@ -38,12 +38,12 @@ TABLES = [
     TableSpec("gaps_table4", "GAPS Table 4: training time, time to converge and drape time of Table 1's runs",
               ("train_s", "converged_s", "ms_per_frame"), sweeps_of="gaps_table1", methods=("lbs", "pbs", "snug_like", "ncs_like", "gaps")),
     *[TableSpec(f"gaps_heldout_{g}", f"GAPS against its own skinning, its loss's optimum and vbd on held-out motion and "
-                f"shapes: the {g}", HELDOUT_METRICS, group="shape",
+                f"shapes: the {g}", HELDOUT_METRICS, group="case",
                 sweeps=(Sweep("gaps_heldout", (SEEDS, "method=gaps", f"garment={g}", ONE_THREAD)),
                         Sweep("gaps_heldout", ("method=lbs,gaps_optimum", f"garment={g}", ONE_THREAD))),
                 methods=("lbs", "gaps_optimum", "gaps"), garments=(g,)) for g in ("tshirt", "dress", "skirt")],  # fmt: skip
     TableSpec("gaps_heldout_tshirt_anny", "gaps_heldout_tshirt on the full anny body",
-              HELDOUT_METRICS, group="shape",
+              HELDOUT_METRICS, group="case",
               sweeps=(Sweep("gaps_heldout", (SEEDS, "method=gaps", "garment=tshirt", "body=anny", ONE_THREAD)),
                       Sweep("gaps_heldout", ("method=lbs,gaps_optimum", "garment=tshirt", "body=anny", ONE_THREAD))),
               methods=("lbs", "gaps_optimum", "gaps")),  # fmt: skip
