@@ -7,7 +7,8 @@ from drapebench.table_specs import ONE_THREAD, SEEDS, Sweep, TableSpec, untraine
 NO_INEXT_OPTIMUM = ("method=gaps_optimum", "method.name=gaps_no_inext_optimum", "method.params.inextensibility_weight=0.0",
                     "method.params.relax_inextensibility_weight=2.0e+8")  # fmt: skip
 
-# the held-out tables (a column group per held-out motion and body shape): vertex error, strain and collisions against the untrained skinning, and the loss gap closed
+# the held-out tables (a column group per held-out motion and body shape): vertex error, strain and collisions
+# against the untrained skinning, and the loss gap closed
 HELDOUT_METRICS = ("vertex_error_mm", "vertex_error_mm@untrained", "eps_e", "eps_e@untrained", "eps_c", "eps_c@postprocessed", "loss_gap_closed")
 
 TABLES = [
