@@ -571,6 +571,9 @@ def test_loss_gap_closed_is_the_share_of_the_untrained_to_optimum_gap(tmp_path):
     assert np.isnan(gap[4])  # the optimum is not below the start: no gap to close (not inf)
     md = write_table([tmp_path], "gaps_heldout_tshirt", tmp_path / "h")[0].read_text()
     assert "gap closed (%)" in md and "66.7" in md
+    header = next(line for line in md.splitlines() if line.startswith("| method"))
+    columns = [c.strip() for c in header.strip("|").split("|")]
+    assert {"GAPS loss (J)", "GAPS loss (J) [untrained]"} <= set(columns)  # the loss the gap is read from, beside it
 
 
 def test_the_scene_line_names_the_body_shapes_of_the_runs():
