@@ -10,12 +10,12 @@ is still running is not started twice), printing its progress and an estimate of
 then writes the table from those runs and, at the end, ``claims.md`` over the tables written. The runs record
 ``viz=none`` (no recordings: a table needs none).
 
-``--quick`` is the same pipeline on a tiny scene (the low-resolution body, 8 frames, 10 settling frames before the
+``--quick`` is the same pipeline on a tiny scene (the low-resolution body, 8 frames, 2 settling frames before the
 reference, ``train=quick`` (``train=cpu`` shortened where a method builds its own training frames) with
 ``train.epochs=0`` (a method's own fixed schedule, such as an autoencoder's, still runs), seed 0; a method trained
 on reference drapes reads four short ones, ``data=quick``; every method of a sweep but only the first value of its other swept keys, so
-every row exists) into ``outputs/reproduce_quick/``, for a check that every table's pipeline runs, not for numbers;
-the benchmark tables (those with ``bench``), timed on their own scenes, are skipped.
+every row exists) into ``outputs/reproduce_quick/``, for a check that every table's pipeline runs, not for numbers,
+so its runs are not tracked (``tracker=none``: they would enter the tables' MLflow experiments); the benchmark tables (those with ``bench``), timed on their own scenes, are skipped.
 The full command writes into ``reports/`` (``--out`` elsewhere).
 
 ``--jobs N`` runs N runs at once, each pinned to its share of the CPU cores (so that its automatic torch threads
@@ -46,8 +46,8 @@ from pathlib import Path
 from drapebench.cache import PROJECT_ROOT, atomic_write
 from drapebench.table_specs import Sweep, TableSpec, spec, specs, sweeps
 
-QUICK = ("body=anny_lowres", "motion.n_frames=6", "motion.transition=2", "reference.settle_frames=10", "train=quick", "train.epochs=0",
-         "seed=0", "data=quick")
+QUICK = ("body=anny_lowres", "motion.n_frames=6", "motion.transition=2", "reference.settle_frames=2", "train=quick", "train.epochs=0",
+         "seed=0", "data=quick", "tracker=none")
 QUICK_KEEP = ("method",)  # the key whose every value --quick keeps: the table's rows
 RUN = ("viz=none", "hydra.mode=RUN")
 

@@ -71,6 +71,7 @@ def test_quick_writes_a_table_and_claims_and_a_restart_reruns_nothing(tmp_path, 
     with pytest.raises(SystemExit):  # quick tables never replace the committed ones
         main(["--quick", "--tables", "baseline", "--out", "reports"])
     (job,) = plan(["baseline"], tmp_path / "runs", quick=True)
+    assert "logged to MLflow" not in job.dir.with_suffix(".log").read_text()  # not in the tables' MLflow experiments
     assert main(args) == 0 and "1 runs, 1 already finished" in capsys.readouterr().out  # resumed: nothing reruns
     (job.dir / "reproduce.json").write_text('{"overrides": [], "commit": "other"}')  # another config or commit
     assert not finished(job, "other") and main([*args, "--dry-run"]) == 0 and "todo  baseline" in capsys.readouterr().out
