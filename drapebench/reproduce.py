@@ -15,7 +15,8 @@ reference, ``train=quick`` (``train=cpu`` shortened where a method builds its ow
 ``train.epochs=0`` (a method's own fixed schedule, such as an autoencoder's, still runs), seed 0; a method trained
 on reference drapes reads four short ones, ``data=quick``; every method of a sweep but only the first value of its other swept keys, so
 every row exists) into ``outputs/reproduce_quick/``, for a check that every table's pipeline runs, not for numbers,
-so its runs are not tracked (``tracker=none``: they would enter the tables' MLflow experiments); the benchmark tables (those with ``bench``), timed on their own scenes, are skipped.
+so its runs are not tracked (``tracker=none``: they would enter the tables' MLflow experiments); the benchmark
+tables (those with ``bench``), timed on their own scenes, are skipped.
 The full command writes into ``reports/`` (``--out`` elsewhere).
 
 ``--jobs N`` runs N runs at once, each pinned to its share of the CPU cores (so that its automatic torch threads
