@@ -7,8 +7,10 @@ import path is met, :func:`known_impl`) may hold the modules of :data:`DECLARATI
 - ``claims.py``: ``CLAIMS`` and ``MORE_CLAIMS`` (:class:`drapebench.claim.Claim` lists) of its paper, which the
   scoreboard lists as every method's ``CLAIMS``, then every method's ``MORE_CLAIMS``;
 - ``tables.py``: ``TABLES`` (:class:`drapebench.table_specs.TableSpec` list) of the committed tables its paper's
-  experiments make, and optionally ``SPEEDUP_REFERENCE`` (the row runtime tables give speed-ups over) and
-  ``REFERENCE_FLOOR`` ({row: what it is}: the rows that measure the reference's distance from itself).
+  experiments make, and optionally ``SPEEDUP_REFERENCE`` (the row runtime tables give speed-ups over),
+  ``REFERENCE_FLOOR`` ({row: what it is}: the rows that measure the reference's distance from itself) and
+  ``QUICK`` (overrides that ``python -m drapebench.reproduce --quick`` adds to the runs of its methods: settings
+  that only shorten a pipeline check, :func:`drapebench.reproduce.quick_extras`).
 
 These modules describe results; they make none, so a method's code fingerprint leaves them out
 (:mod:`drapebench.staleness`). The library itself names no method.

@@ -66,7 +66,8 @@ class Job:
 def expand(sweep: Sweep, quick: bool = False) -> list:
     """The runs of ``sweep``: one override list each (``key=value``), the experiment's sweeper params crossed with
     the sweep's overrides as Hydra's basic sweeper crosses them (a glob such as ``method=glob(*)`` expanded over
-    the config group); with ``quick``, :data:`QUICK` and only the first value of keys not in :data:`QUICK_KEEP`."""
+    the config group); with ``quick``, :data:`QUICK` and only the first value of keys not in :data:`QUICK_KEEP`, and
+    each run's :func:`quick_extras`."""
     from hydra import compose, initialize_config_dir
     from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
     from hydra.core.global_hydra import GlobalHydra
@@ -91,9 +92,21 @@ def expand(sweep: Sweep, quick: bool = False) -> list:
             first = all(o == _first(jobs, o) for o in key)
             if first and tuple(job) not in seen:
                 seen.add(tuple(job))
-                kept.append(job)
+                kept.append([*job, *quick_extras(job)])
         jobs = kept
     return [tuple(j) for j in jobs]
+
+
+def quick_extras(job: list) -> tuple:
+    """The overrides ``--quick`` adds to the run ``job`` (``key=value`` strings) beside :data:`QUICK`: the
+    ``tables.QUICK`` of the package that implements its ``method=`` (settings that shorten only a pipeline check,
+    such as a model's set-up solves, :mod:`drapebench.plugins`); none for a run that names no method config."""
+    from drapebench.plugins import declared
+    from drapebench.staleness import implementation
+
+    name = next((o.split("=", 1)[1] for o in job if o.split("=", 1)[0].lstrip("+") == "method"), None)
+    impl = implementation(name) if name else None
+    return tuple(o for package, extras in declared("tables", "QUICK") if impl and package.rsplit(".", 1)[-1] == impl for o in extras)
 
 
 def _garment(job: list) -> str | None:

@@ -27,6 +27,8 @@ def test_a_sweep_expands_as_hydra_sweeps_it_and_quick_keeps_every_row():
     quick = expand(Sweep("gaps_table3", ("seed=0,1,2",)), quick=True)
     assert len(quick) == 2 and all("seed=0" in j and "train.epochs=0" in j for j in quick)
     assert len({o for j in quick for o in j if o.startswith("motion.betas=")}) == 1
+    assert all("method.params.relax_iterations=20" in j for j in quick)  # GAPS's quick-only settings (methods/gaps/tables.py)
+    assert not any(o.startswith("method.params.relax") for j in expand(Sweep("baseline", ()), quick=True) for o in j)  # lbs has none
     one = expand(Sweep("gaps_table3", ("method=gaps", "seed=1")))  # an override replaces the experiment's list
     assert len(one) == 3 and all("method=gaps" in j and "seed=1" in j for j in one)
 

@@ -4,6 +4,10 @@ through :mod:`drapebench.plugins`."""
 
 from drapebench.table_specs import ONE_THREAD, SEEDS, Sweep, TableSpec, untrained
 
+# --quick (a pipeline check, untrained): the canonical relaxation on 2 body shapes of 20 L-BFGS iterations each, not
+# 9 of 200 (7-12 s each; 476 core-s of CI's quick run)
+QUICK = ("method.params.relax_components=1", "method.params.relax_grid=[-2.0,2.0]", "method.params.relax_iterations=20")
+
 NO_INEXT_OPTIMUM = ("method=gaps_optimum", "method.name=gaps_no_inext_optimum", "method.params.inextensibility_weight=0.0",
                     "method.params.relax_inextensibility_weight=2.0e+8")  # fmt: skip
 
