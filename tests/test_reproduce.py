@@ -29,6 +29,8 @@ def test_a_sweep_expands_as_hydra_sweeps_it_and_quick_keeps_every_row():
     assert len({o for j in quick for o in j if o.startswith("motion.betas=")}) == 1
     assert all("method.params.relax_iterations=20" in j for j in quick)  # GAPS's quick-only settings (methods/gaps/tables.py)
     assert not any(o.startswith("method.params.relax") for j in expand(Sweep("baseline", ()), quick=True) for o in j)  # lbs has none
+    settles = {next(o for o in j if o.startswith("method=")): "method.params.settle_frames=2" in j for j in expand(Sweep("gaps_table1", ("method=lbs,pbs",)), quick=True)}
+    assert settles == {"method=lbs": False, "method=pbs": True}  # the simulation's quick settle (methods/pbs/tables.py)
     one = expand(Sweep("gaps_table3", ("method=gaps", "seed=1")))  # an override replaces the experiment's list
     assert len(one) == 3 and all("method=gaps" in j and "seed=1" in j for j in one)
 
