@@ -212,7 +212,7 @@ def test_quick_runs_never_enter_the_committed_archive(capsys):
 @pytest.mark.pipeline
 def test_quick_runs_every_table_s_pipeline(tmp_path):
     """Every table's sweeps on the tiny scene, its table and the claims, a run per core: a table whose pipeline breaks
-    goes red in CI (about 14 min on 2 cores from the session's empty data folder)."""
+    goes red in CI (about 13 min on 2 cores from the session's empty data folder)."""
     jobs = str(min(2, os.cpu_count() or 1))
     assert main(["--quick", "--jobs", jobs, "--runs", str(tmp_path / "runs"), "--out", str(tmp_path / "out")]) == 0
     for name, s in specs().items():
