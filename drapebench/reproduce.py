@@ -250,19 +250,26 @@ def worker_cpus(workers: int) -> list:
     return [set(cores[k % len(cores) :: workers]) or {cores[k % len(cores)]} for k in range(workers)]
 
 
+def _override_values(job: Job) -> dict:
+    return dict(o.split("=", 1) for o in job.overrides if "=" in o)
+
+
 def run_kind(job: Job) -> str:
     """What ``job`` runs, for pricing it: its ``method.name=`` override, else its ``method=`` one, else its table (an
-    optimisation to the loss's optimum takes minutes where a trained model's evaluation takes seconds)."""
-    values = dict(o.split("=", 1) for o in job.overrides if "=" in o)
-    return values.get("method.name") or values.get("method") or job.table
+    optimisation to the loss's optimum takes minutes where a trained model's evaluation takes seconds), with its
+    ``motion.n_frames=`` override where it has one ("lbs, 10000 frames": a long run is not priced as a short one)."""
+    values = _override_values(job)
+    kind = values.get("method.name") or values.get("method") or job.table
+    return f"{kind}, {values['motion.n_frames']} frames" if "motion.n_frames" in values else kind
 
 
 def time_left(took: dict, waiting: list, trains: set, workers: int) -> str:
     """", about H:MM:SS left (n trainings, m other runs)" for the jobs ``waiting``: each priced at the mean wall time
     of the finished runs (``took``: {folder: (seconds, trained, kind)}) of its own kind (:func:`run_kind`; a run
     that trains a model, its folder in ``trains``, apart from one that does not), else of its class (training or
-    not), over ``workers``; a class none of whose runs has finished yet is left out of the time and named as not
-    timed yet (a training is not priced as an evaluation, nor the reverse); "" before any run has finished."""
+    not), over ``workers``; a run left unpriced (its class has no finished run yet, or it sets its own length and
+    no run of its kind has finished) is left out of the time and named as not timed yet (a training is not priced
+    as an evaluation, nor the reverse, nor a 10,000-frame run as a 300-frame one); "" before any run has finished."""
     if not took:
         return ""
 
@@ -278,7 +285,9 @@ def time_left(took: dict, waiting: list, trains: set, workers: int) -> str:
     for job in waiting:
         trained = job.dir in trains
         counts[trained] += 1
-        price = by_kind.get((trained, run_kind(job)), by_class.get(trained))
+        price = by_kind.get((trained, run_kind(job)))
+        if price is None and "motion.n_frames" not in _override_values(job):
+            price = by_class.get(trained)
         if price is None:
             untimed_counts[trained] += 1
         else:

@@ -466,6 +466,20 @@ def test_the_time_left_prices_each_run_at_its_own_methods_mean(tmp_path):
     assert time_left(took, optimum[1:] + evals[1:] + [variant], set(), 1) == ", about 0:17:55 left (6 other runs)"
 
 
+def test_the_time_left_does_not_price_a_long_run_at_the_short_runs_mean(tmp_path):
+    """Stability's 10,000-frame runs take minutes where its 300-frame ones take seconds: a run that sets its own
+    length is priced only at the mean of finished runs of its method and length, else named as not timed yet."""
+    from drapebench.reproduce import run_kind, time_left
+
+    short = Job("t", Sweep("x"), ("method=lbs",), tmp_path / "0")
+    long_runs = [Job("t", Sweep("x"), ("method=lbs", "motion.n_frames=10000"), tmp_path / str(i)) for i in (1, 2)]
+    assert run_kind(long_runs[0]) == "lbs, 10000 frames" and run_kind(short) == "lbs"
+    took = {tmp_path / "9": (10.0, False, "lbs")}
+    assert time_left(took, [short] + long_runs, set(), 1) == ", about 0:00:10 left (1 other runs; 2 other runs not timed yet)"
+    took[long_runs[0].dir] = (600.0, False, "lbs, 10000 frames")
+    assert time_left(took, [short, long_runs[1]], set(), 1) == ", about 0:10:10 left (2 other runs)"
+
+
 def test_a_benchmark_table_names_an_output_path_anyone_can_rerun(monkeypatch):
     """A benchmark's table (its script writes it) is made with --out relative to the project, so that the command
     its footer names runs in any checkout, not only in the one (or worktree) that made it."""
