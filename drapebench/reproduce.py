@@ -257,7 +257,7 @@ def _override_values(job: Job) -> dict:
 def run_kind(job: Job) -> str:
     """What ``job`` runs, for pricing it: its ``method.name=`` override, else its ``method=`` one, else its table (an
     optimisation to the loss's optimum takes minutes where a trained model's evaluation takes seconds), with its
-    ``motion.n_frames=`` override where it has one ("lbs, 10000 frames": a long run is not priced as a short one)."""
+    ``motion.n_frames=`` override where it has one ("<method>, 10000 frames": a long run is not priced as a short one)."""
     values = _override_values(job)
     kind = values.get("method.name") or values.get("method") or job.table
     return f"{kind}, {values['motion.n_frames']} frames" if "motion.n_frames" in values else kind
