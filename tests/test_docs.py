@@ -58,3 +58,34 @@ def test_method_readmes_are_maps_without_commit_hashes():
 def test_the_commit_hash_rule_catches_a_hash():
     assert COMMIT_HASH.findall("measured at 494abcf and c14cf29") == ["494abcf", "c14cf29"]
     assert not COMMIT_HASH.findall("1e-4, 0.28 M parameters, decoded 2,880 poses")
+
+
+def _table_names_in(text: str, tables: set[str]) -> set[str]:
+    """The table names (reports/<name>.md stems) that `text` mentions as whole words."""
+    return {name for name in tables if re.search(rf"(?<![\w]){re.escape(name)}(?![\w])", text)}
+
+
+def _stale_tables(index: str, claims: str, tables: set[str]) -> tuple[set[str], set[str]]:
+    """(tables the index header calls stale, tables claims.md lists with stale rows)."""
+    header = re.search(r"stale: (.*?)\*\*", index, re.S)
+    assert header, "reports/README.md's header has no 'stale: ...' sentence (write 'stale: none' when none is)"
+    section = claims.split("Tables with stale rows", 1)
+    listed = re.findall(r"^- (\w+):", section[1], re.M) if len(section) == 2 else []
+    return _table_names_in(header.group(1), tables), set(listed)
+
+
+def test_the_reports_index_names_the_same_stale_tables_as_claims():
+    reports = ROOT / "reports"
+    tables = {p.stem for p in reports.glob("*.md")} - {"README", "history", "claims"}
+    in_index, in_claims = _stale_tables((reports / "README.md").read_text(), (reports / "claims.md").read_text(), tables)
+    assert in_index == in_claims, (
+        f"reports/README.md's header calls {sorted(in_index)} stale, claims.md lists {sorted(in_claims)}: "
+        "make the header's 'stale:' sentence name claims.md's 'Tables with stale rows'")
+
+
+def test_the_stale_list_rule_catches_a_divergence():
+    tables = {"gensim_table1", "vae_table2", "vae_table2_gpu"}
+    claims = "Tables with stale rows (...):\n- vae_table2_gpu: dress.\n"
+    assert _stale_tables("**x; stale: vae_table2_gpu (needs a GPU).**", claims, tables) == ({"vae_table2_gpu"}, {"vae_table2_gpu"})
+    in_index, in_claims = _stale_tables("**stale: vae_table2 (old).**", claims, tables)
+    assert in_index != in_claims
