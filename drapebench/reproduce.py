@@ -40,6 +40,7 @@ import subprocess
 import sys
 import threading
 import time
+from collections import Counter
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -150,14 +151,43 @@ def commit() -> str:
     leaves out what a regeneration writes (:data:`drapebench.results.GENERATED`: the tables, the README's status, the
     archive under ``reports/``), as ``git_commit`` does: the tables written, or the archive synced, before the last
     table do not change the label of the runs it reads."""
-    from drapebench.results import GENERATED, git_commit
+    from drapebench.results import git_commit
 
     at = git_commit()
     if not at.endswith("-dirty"):
         return at
+    return f"{at}+{hashlib.sha256(_diff_from('HEAD') or b'').hexdigest()[:12]}"
+
+
+def _diff_from(base: str) -> bytes | None:
+    """``git diff base`` of the tracked files, less what a regeneration writes (:data:`drapebench.results.GENERATED`);
+    None when git cannot compare them (``base`` not a commit, no git)."""
+    from drapebench.results import GENERATED
+
     excluded = [f":(exclude){g}" for g in GENERATED]
-    diff = subprocess.run(["git", "diff", "HEAD", "--", ".", *excluded], cwd=PROJECT_ROOT, capture_output=True, check=False).stdout
-    return f"{at}+{hashlib.sha256(diff).hexdigest()[:12]}"
+    try:
+        done = subprocess.run(["git", "diff", base, "--", ".", *excluded], cwd=PROJECT_ROOT, capture_output=True, check=False)
+    except OSError:
+        return None
+    return done.stdout if done.returncode == 0 else None
+
+
+def _short(label: str) -> str:
+    """A commit label as people read it: the sha's first 12 digits, and an edit's ``-dirty+<hash>``."""
+    sha, dirty, edit = label.partition("-dirty+")
+    return sha[:12] + (f"-dirty+{edit}" if dirty else "")
+
+
+def code_against(at: str) -> str:
+    """The label :func:`commit` gives the tracked files as they are now, measured from ``at``'s commit rather than
+    HEAD: ``at``'s sha when they match it (what a regeneration writes aside), else ``<sha>-dirty+<hash>``; ``at``
+    itself when git cannot compare. Equal to ``at`` while the code a regeneration started on is unchanged, even after
+    a commit of its tables or notes."""
+    sha = at.split("-dirty")[0]
+    diff = _diff_from(sha)
+    if diff is None:
+        return at
+    return f"{sha}-dirty+{hashlib.sha256(diff).hexdigest()[:12]}" if diff else sha
 
 
 def finished(job: Job, at: str) -> bool:
@@ -165,10 +195,11 @@ def finished(job: Job, at: str) -> bool:
     (:func:`commit`); code git cannot name (``at`` "unknown") has finished nothing."""
     if at == "unknown":
         return False
-    stamp = job.dir / "reproduce.json"
-    if not stamp.exists() or not ((job.dir / "metrics.json").exists() or (job.dir / "failed.json").exists()):
+    from drapebench.run_archive import STAMP, read_stamp
+
+    if not (job.dir / STAMP).exists() or not ((job.dir / "metrics.json").exists() or (job.dir / "failed.json").exists()):
         return False
-    done = json.loads(stamp.read_text())
+    done = read_stamp(job.dir)
     return done.get("overrides") == list(job.overrides) and done.get("commit") == at
 
 
@@ -298,16 +329,21 @@ def time_left(took: dict, waiting: list, trains: set, workers: int) -> str:
     return f", about {_clock(seconds)} left ({', '.join(timed)}{'; ' + ', '.join(untimed) if untimed else ''})"
 
 
-def run_all(jobs: list, at: str, say=print, workers: int = 1, runner=run_job) -> list:
+def run_all(jobs: list, at: str, say=print, workers: int = 1, runner=run_job, code_now=None) -> list:
     """Run the unfinished ``jobs`` in order, saying per run its place, what it is and an estimate of the time left
     (:func:`time_left`: each run left at the mean wall time of the finished runs of its kind so far); ``workers`` > 1
     runs that many at once, each worker pinned to its cores (:func:`worker_cpus`) and taking
     the next group of runs that share a model (:func:`drapebench.reproduce_cost.groups`) in order, once the run it
-    waits for (its ``after``) has ended. Returns the jobs that did not finish."""
+    waits for (its ``after``) has ended. Before each run starts, ``code_now()`` (default: :func:`commit`) must still
+    give what it gave at the start (default: :func:`code_against` ``at``): code changed during a regeneration stops
+    it rather than stamp runs with code they did not run.
+    Returns the jobs that did not finish."""
     from concurrent.futures import ThreadPoolExecutor
 
     from drapebench.reproduce_cost import grouped
 
+    code_now = code_now or (lambda: code_against(at))
+    start = code_now()
     todo = [j for j in jobs if not finished(j, at)]
     say(f"{len(jobs)} runs, {len(jobs) - len(todo)} already finished at {at[:12] + (' with uncommitted changes' if '-dirty' in at else '')}, {len(todo)} to run"
         + (f", {workers} at once" if workers > 1 else ""))
@@ -319,10 +355,11 @@ def run_all(jobs: list, at: str, say=print, workers: int = 1, runner=run_job) ->
                 "it runs on its own and its log will say why")
     failed, lock, counter, took, waiting, ended = [], threading.Lock(), iter(range(1, len(todo) + 1)), {}, list(todo), set()
     turn = threading.Condition(lock)  # a run has ended: a group waiting for it may start
+    changed = threading.Event()  # the code changed under the regeneration: no further run starts
 
     def one(job: Job, cpus) -> None:
         with lock:
-            if _STOPPING.is_set():  # stopped by a signal: the runs left are not started
+            if _STOPPING.is_set() or changed.is_set():  # stopped by a signal or a code change: the runs left are not started
                 failed.append(job)
                 ended.add(job.dir)
                 turn.notify_all()
@@ -331,13 +368,23 @@ def run_all(jobs: list, at: str, say=print, workers: int = 1, runner=run_job) ->
             say(f"[{i}/{len(todo)}] {job.table}: {job.sweep.experiment} {' '.join(job.overrides)}{time_left(took, waiting, trains, workers)}")
             waiting.remove(job)  # counted above: the run starting now is left too
         t0 = time.monotonic()
-        code = runner(job, at, cpus)
+        try:
+            if (now := code_now()) != start:  # a table must not mix code: stop before a run would carry the wrong stamp
+                changed.set()
+                say(f"    the code changed since the regeneration started (it was {_short(start)}, it is {_short(now)}): this run "
+                    "and those left are not started; commit or undo the change, then rerun the command")
+                code = BUSY
+            else:
+                code = runner(job, at, cpus)
+        except Exception as err:  # noqa: BLE001 - one run's error (a full disk, a failed start) must not hang the runs waiting for it
+            code = 1
+            say(f"    {job.table}: {job.sweep.experiment} {' '.join(job.overrides)} raised {type(err).__name__}: {err}")
         with lock:
             ended.add(job.dir)
             turn.notify_all()
             if code == BUSY:
                 failed.append(job)
-                if not _STOPPING.is_set():
+                if not (_STOPPING.is_set() or changed.is_set()):
                     say(f"    not started: another process is running it now (it holds {job.dir.parent / (job.dir.name + '.lock')})")
                 return
             took[job.dir] = (time.monotonic() - t0, job.dir in trains, run_kind(job))
@@ -378,10 +425,11 @@ def run_all(jobs: list, at: str, say=print, workers: int = 1, runner=run_job) ->
 
 
 def write_tables(names: list, root: Path, out: Path, quick: bool = False, say=print, at: str | None = None,
-                 benches: bool = True) -> list:
+                 benches: bool = True, skipped: list | None = None) -> list:
     """Write each table of ``names`` into ``out`` from its runs under ``root`` (a benchmark's table: run its
     script, which ``quick`` and ``benches=False`` skip: it is timed on its own scene), only once every run it plans has
-    a result or a recorded failure at commit ``at`` (default :func:`commit`); returns the paths written."""
+    a result or a recorded failure at commit ``at`` (default :func:`commit`); returns the paths written and appends
+    to ``skipped`` the names of the tables left unwritten for want of runs."""
     from drapebench.report import evaluation_plot, write_table
 
     paths = []
@@ -404,8 +452,10 @@ def write_tables(names: list, root: Path, out: Path, quick: bool = False, say=pr
         at = at or commit()
         dirs = [j.dir for j in planned if finished(j, at)]
         if len(dirs) < len(planned):  # a cell averaged over fewer scenes would change silently
-            say(f"{name}: {len(planned) - len(dirs)} of its {len(planned)} runs have no result at this commit, not written "
-                f"(what {target.name} held stays); rerun the command to finish them")
+            say(f"{name}: {len(planned) - len(dirs)} of its {len(planned)} runs have no result at {at[:12]}, not written "
+                f"(what {target.name} held stays); {_how_to_finish(planned, at, benches)}")
+            if skipped is not None:
+                skipped.append(name)
             continue
         if s.evaluations:
             paths.append(evaluation_plot(dirs, target.with_suffix(".png"), title=s.what, command=s.command() + (" --quick" if quick else ""),
@@ -414,6 +464,23 @@ def write_tables(names: list, root: Path, out: Path, quick: bool = False, say=pr
         paths += write_table(dirs, name, target, command=s.command() + (" --quick" if quick else ""),
                              methods=list(s.methods) or None, garments=list(s.garments) or None)  # fmt: skip
     return paths
+
+
+def _how_to_finish(planned: list, at: str, runs_them: bool) -> str:
+    """What finishes a table whose ``planned`` runs lack results at ``at``: rerunning the command, or (with
+    ``runs_them`` False, as ``--write-only``) the ``--at`` of the commits its finished runs were made at."""
+    from drapebench.run_archive import STAMP, read_stamp
+
+    if runs_them:
+        return "rerun the command to finish them"
+    made = Counter(read_stamp(j.dir).get("commit") or "unknown" for j in planned if (j.dir / STAMP).exists())
+    made.pop(at, None)
+    if not made:
+        return "--write-only runs nothing and none of its runs is here: run the command without --write-only"
+    most = next((c for c, _ in made.most_common() if c != "unknown"), None)
+    hint = f"write them with --at {most if '-dirty+' in most else most[:12]}, or " if most else ""
+    return (f"--write-only runs nothing; its runs here were made at {', '.join(f'{c[:12]} ({n})' for c, n in made.most_common())}: "
+            f"{hint}run the command without --write-only")
 
 
 def main(argv=None) -> int:
@@ -462,13 +529,20 @@ def main(argv=None) -> int:
         parser.error("--write-only --dry-run: both run nothing; --dry-run lists the runs, --write-only writes the finished tables; choose one")
     names = [n for n in tables if n in args.tables or _needed_by(n, args.tables)]
     at = commit()
+    if at == "unknown" and not args.at and not args.dry_run:  # nothing would ever count as finished, nor be written
+        try:
+            why = subprocess.run(["git", "rev-parse", "HEAD"], cwd=PROJECT_ROOT, capture_output=True, text=True, check=False).stderr.strip()
+        except OSError as err:
+            why = str(err)
+        parser.error(f"git cannot name this checkout's commit ({why or 'no git'}), so no run could count as finished: run "
+                     f"inside a git clone of the project (if git calls it dubious: git config --global --add safe.directory {PROJECT_ROOT})")
     if args.at:
         from drapebench.staleness import run_label
 
         at = run_label(args.at)
         if at is None:
-            parser.error(f"--at {args.at}: not a commit of this repository (no run would match it); give the commit in the runs' "
-                         "reproduce.json, e.g. from `git log --oneline`")
+            parser.error(f"--at {args.at}: not a commit of this repository, nor <commit>-dirty+<12 hex digits> (no run would "
+                         "match it); give the commit in the runs' reproduce.json, e.g. from `git log --oneline`")
     if args.archive and args.dry_run:
         print(f"archive {args.archive}: not synced by a dry run (the runs it would restore are listed as todo)")
     elif args.archive:
@@ -492,7 +566,9 @@ def main(argv=None) -> int:
     if not args.write_only:
         stop_runs_on_signals()
         failed = run_all(jobs, at, workers=args.jobs, runner=_archiving(args.archive, root) if args.archive else run_job)
-    paths = write_tables([n for n in names if n in args.tables], root, out, args.quick, at=at, benches=not args.write_only)
+    unwritten: list = []
+    paths = write_tables([n for n in names if n in args.tables], root, out, args.quick, at=at, benches=not args.write_only,
+                         skipped=unwritten)
     from drapebench.claims import write_claims
 
     quick_note = "**--quick**: these verdicts read untrained 8-frame tables that check the pipeline; they are not results."
@@ -501,7 +577,9 @@ def main(argv=None) -> int:
         print(p)
     if failed:
         print(f"{len(failed)} runs stopped without a result (their logs are named above); rerun the command to retry them")
-    return 1 if failed else 0
+    if unwritten:
+        print(f"not written: {', '.join(unwritten)} (why is said above)")
+    return 1 if failed or unwritten else 0
 
 
 def _archiving(archive: Path, root: Path):

@@ -30,8 +30,22 @@ def _finished(root: Path) -> dict:
             if not d.name.endswith(".tmp") and ((d / "metrics.json").exists() or (d / "failed.json").exists())}  # fmt: skip
 
 
+def read_stamp(run: Path) -> dict:
+    """The ``reproduce.json`` stamp of the run folder ``run`` (its overrides and commit); a stamp that is not JSON (a
+    merge conflict in a committed archive, a disk that filled) raises a ValueError that names the file and the fix."""
+    path = run / STAMP
+    try:
+        stamp = json.loads(path.read_text())
+    except json.JSONDecodeError as err:
+        raise ValueError(f"{path} is not valid JSON ({err}; a merge conflict?): resolve it, or delete {run} so that "
+                         "the regeneration runs it again") from err
+    if not isinstance(stamp, dict):
+        raise ValueError(f"{path} holds {type(stamp).__name__}, not a stamp object: delete {run} so that the regeneration runs it again")
+    return stamp
+
+
 def _commit(run: Path) -> str | None:
-    return json.loads((run / STAMP).read_text()).get("commit")
+    return read_stamp(run).get("commit")
 
 
 def portable_checkpoint(path: str | None) -> str | None:

@@ -21,6 +21,7 @@ import ast
 import hashlib
 import importlib
 import json
+import re
 import subprocess
 from functools import lru_cache
 from pathlib import Path
@@ -74,8 +75,13 @@ def known(commit: str) -> str | None:
 
 def run_label(given: str) -> str | None:
     """The commit label that runs made at ``given`` record (:func:`drapebench.reproduce.commit`): the full hash of a
-    commit or its prefix, an uncommitted edit's ``<sha>-dirty+<hash>`` as given; None when it is neither."""
-    return known(given) or (given if "-dirty+" in given else None)
+    commit or its prefix; an uncommitted edit's ``<sha>-dirty+<12 hex digits>`` with its sha expanded the same way;
+    None when it is neither (or names no commit of this repository)."""
+    sha, dirty, edit = given.partition("-dirty+")
+    full = known(sha)
+    if not dirty:
+        return full
+    return f"{full}-dirty+{edit}" if full and re.fullmatch(r"[0-9a-f]{12}", edit) else None
 
 
 def is_ancestor(a: str, b: str) -> bool:

@@ -112,9 +112,10 @@ def test_write_only_writes_another_commit_s_finished_runs_and_runs_nothing(tmp_p
     monkeypatch.setattr(reproduce, "commit", lambda: "1" * 40)  # this checkout: another commit
     args = ["--quick", "--tables", "baseline", "--runs", str(runs), "--out", str(out), "--write-only"]
     capsys.readouterr()
-    assert main(args) == 0
+    assert main(args) == 1  # a table asked for and not written is a failure, with what writes it
     said = capsys.readouterr().out
     assert "1 of its 1 runs have no result" in said and "[1/1]" not in said and not (out / "baseline.csv").exists()
+    assert f"were made at {head[:12]} (1): write them with --at {head[:12]}" in said and "not written: baseline" in said
     assert main([*args, "--at", head[:10]]) == 0
     said = capsys.readouterr().out
     assert "[1/1]" not in said and "have no result" not in said
@@ -593,3 +594,98 @@ def test_a_stopped_command_stops_its_runs_and_starts_no_other(tmp_path, workers)
     time.sleep(0.5)
     assert not [p for p in pids if alive(p)], "the command's runs outlived it"
     assert len(pids_file.read_text().split()) == workers  # the runs left never started
+
+
+def _ends_with_a_result(job, commit="c"):
+    job.dir.mkdir(parents=True)
+    (job.dir / "metrics.json").write_text("{}")
+    (job.dir / "reproduce.json").write_text(json.dumps({"overrides": list(job.overrides), "commit": commit}))
+
+
+def test_run_all_stops_when_the_code_changes_under_it(tmp_path, monkeypatch):
+    """An edit of the code while a regeneration runs: the runs left are not started (they would carry the first
+    commit's stamp with other code), and the command says why."""
+    import drapebench.reproduce_cost as cost
+    from drapebench.reproduce import run_all
+
+    jobs = [Job("t", Sweep("x"), (f"k={i}",), tmp_path / str(i)) for i in range(3)]
+    monkeypatch.setattr(cost, "grouped", lambda todo: ([todo], set(), {}))
+    ran, said = [], []
+
+    def runner(job, at, cpus):
+        ran.append(job)
+        _ends_with_a_result(job)
+        return 0
+
+    labels = iter(["c", "c", "c-dirty+0123456789ab", "c-dirty+0123456789ab"])  # at the start, then before each run
+    failed = run_all(jobs, "c", say=said.append, runner=runner, code_now=lambda: next(labels))
+    assert ran == jobs[:1] and failed == jobs[1:]
+    assert any("the code changed since the regeneration started (it was c, it is c-dirty+0123456789ab)" in s for s in said)
+    assert not any("another process is running it" in s for s in said)
+
+
+def test_code_against_names_an_edit_of_the_tracked_code_only(monkeypatch):
+    """The label of the tree measured from the regeneration's commit: the commit itself while only what a
+    regeneration writes differs, an edit label otherwise; a commit git cannot compare with leaves the label as given."""
+    from drapebench.reproduce import code_against
+
+    diffs = {"a" * 40: b"", "b" * 40: b"diff --git a/methods/x.py", "c" * 40: None}
+    monkeypatch.setattr(reproduce, "_diff_from", lambda base: diffs[base])
+    assert code_against("a" * 40) == "a" * 40 and code_against("a" * 40 + "-dirty+0123456789ab") == "a" * 40
+    assert code_against("b" * 40).startswith("b" * 40 + "-dirty+") and code_against("c" * 40) == "c" * 40
+
+
+def test_a_run_that_raises_ends_and_does_not_hold_up_the_runs_waiting_for_it(tmp_path, monkeypatch):
+    """Two workers; the second group waits for the first group's run, whose runner raises (a full disk, a failed
+    start): the error is said, the run counts as failed, and the waiting group still runs (no hang)."""
+    import drapebench.reproduce_cost as cost
+    from drapebench.reproduce import run_all
+    from drapebench.reproduce_cost import Group
+
+    jobs = [Job("t", Sweep("x"), (f"k={i}",), tmp_path / str(i)) for i in range(2)]
+    first, second = Group(jobs[:1]), Group(jobs[1:])
+    second.after = jobs[0]
+    monkeypatch.setattr(cost, "grouped", lambda todo: ([first, second], set(), {}))
+    said = []
+
+    def runner(job, at, cpus):
+        if job is jobs[0]:
+            raise OSError(28, "No space left on device")
+        _ends_with_a_result(job)
+        return 0
+
+    import threading
+
+    result = []
+    thread = threading.Thread(target=lambda: result.append(run_all(jobs, "c", say=said.append, workers=2, runner=runner,
+                                                                   code_now=lambda: "c")), daemon=True)  # fmt: skip
+    thread.start()
+    thread.join(30)
+    assert not thread.is_alive(), "run_all hangs after a run raised: the runs waiting for it never start"
+    assert result == [jobs[:1]]
+    assert any("raised OSError" in s and "No space left on device" in s for s in said) and finished(jobs[1], "c")
+
+
+def test_a_stamp_that_is_not_json_names_its_file_and_the_fix(tmp_path):
+    job = Job("t", Sweep("x"), ("k=0",), tmp_path / "0")
+    _ends_with_a_result(job)
+    (job.dir / "reproduce.json").write_text('<<<<<<< HEAD\n{"commit": "c"}\n=======\n')
+    with pytest.raises(ValueError, match=r"reproduce.json is not valid JSON .*a merge conflict.*delete"):
+        finished(job, "c")
+
+
+def test_at_expands_an_edit_label_and_refuses_a_malformed_one():
+    from drapebench.staleness import known, run_label
+
+    head = known("HEAD")
+    assert run_label(head[:10]) == head
+    assert run_label(f"{head[:10]}-dirty+0123456789ab") == f"{head}-dirty+0123456789ab"  # as the runs' stamps hold it
+    assert run_label(f"{head[:10]}-dirty+xyz") is None and run_label("nosuchcommit-dirty+0123456789ab") is None
+
+
+def test_a_checkout_git_cannot_name_is_refused_up_front(monkeypatch, capsys):
+    """Without a commit no run would ever count as finished and no table would be written: say so before running."""
+    monkeypatch.setattr(reproduce, "commit", lambda: "unknown")
+    with pytest.raises(SystemExit):
+        main(["--tables", "baseline", "--quick"])
+    assert "git cannot name this checkout's commit" in capsys.readouterr().err
