@@ -729,12 +729,12 @@ def evaluation_plot(dirs, path: Path, columns=tuple(EVALUATION_LABELS), title: s
     return save_figure(fig, path)
 
 
-def only_methods(df: pd.DataFrame, methods: list[str] | None) -> pd.DataFrame:
+def only_methods(df: pd.DataFrame, methods: list[str] | None, failed: frozenset = frozenset()) -> pd.DataFrame:
     """The rows of ``df`` whose method is in ``methods``, in the order given (all rows for None); raises
-    ValueError naming a method no run has."""
+    ValueError naming a method that no run has, finished or recorded as failed (``failed``: those methods)."""
     if not methods or df.empty:
         return df
-    missing = [m for m in methods if m not in set(df["method"])]
+    missing = [m for m in methods if m not in set(df["method"]) | failed]
     if missing:
         raise ValueError(f"no run of method(s) {', '.join(missing)} in the given directories; the runs have: {', '.join(dict.fromkeys(df['method']))}")
     order = {m: i for i, m in enumerate(methods)}
@@ -758,17 +758,20 @@ def write_table(dirs, name: str, out: Path, command: str | None = None, methods:
     (:mod:`drapebench.table_specs`; rows: ``methods`` in that order, or every method of the runs; only the runs of
     ``garments`` when given), and ``out``_bars.png for a spec with ``bars``; returns the paths. A table whose runs
     come from several commits says so in its title."""
-    df = only_garments(only_methods(collect(dirs), methods), garments)  # first: the runs' methods declare tables too
+    failed = collect_failures(dirs)
+    failed_methods = frozenset(failed["method"]) if not failed.empty else frozenset()
+    df = only_garments(only_methods(collect(dirs), methods, failed_methods), garments)  # first: the runs' methods declare tables too
     ts = spec(name)
     if not ts.metrics:
         raise KeyError(f"table {name!r} is not made from runs by this command: {ts.command()}")
     metrics, group = list(ts.metrics), ts.group
-    failed = collect_failures(dirs)
     if methods and not failed.empty:
         failed = failed[failed["method"].isin(methods)]
     if garments and not failed.empty:
         failed = failed[failed["garment"].isin(garments)]
     t = run_table(df, failed, metrics) if group is None else mark_failures(table(df, metrics, group=group), failed, group=group)
+    if methods and group is not None:  # a method all of whose runs failed is added last by mark_failures: back in its place
+        t = t.reindex([m for m in methods if m in t.index] + [m for m in t.index if m not in methods])
     command = command or "python -m drapebench.report " + " ".join(sys.argv[1:])
     prov = provenance(pd.concat([df, failed]), command)
     about = f"{scene(pd.concat([df, failed]))}\n\n{legend(metrics)}"

@@ -110,6 +110,24 @@ def test_failed_runs_show_as_failed_cells_in_tables_and_summaries(tmp_path):
     assert grouped.count("diverged at frame 12 of 105") == 1 and "- pbs on gown (x2), lbs on gown failed:" in grouped
 
 
+def test_a_method_whose_every_run_failed_is_a_row_of_failed_cells(tmp_path):
+    """A table that lists a method whose runs all diverged (recorded with on_failure=record) is still written, the
+    method in its place with "failed" cells, not refused as a method no run has."""
+    import json
+    import shutil
+
+    shutil.copytree(FIXTURES, tmp_path / "sweep")
+    (tmp_path / "sweep" / "9_gaps_tshirt").mkdir()
+    (tmp_path / "sweep" / "9_gaps_tshirt" / "failed.json").write_text(json.dumps(
+        {"status": "failed", "method": "gaps", "garment": "tshirt", "motion": "kick", "body": "anny_lowres", "shape": "mean",
+         "error": "SimulationDiverged", "message": "loss is NaN at step 3", "commit": "def456"}))  # fmt: skip
+    write_table([tmp_path / "sweep"], "baseline", tmp_path / "t", command="pytest", methods=["gaps", "lbs"])
+    t = pd.read_csv(tmp_path / "t.csv", comment="#", header=[0, 1], index_col=0)
+    assert list(t.index) == ["gaps", "lbs"] and t.loc["gaps", ("tshirt", "ε_c (%)")] == "failed"
+    with pytest.raises(ValueError, match="no run of method.s. snug_like"):  # a method with neither result nor failure
+        write_table([tmp_path / "sweep"], "baseline", tmp_path / "u", command="pytest", methods=["snug_like", "lbs"])
+
+
 def test_jobs_are_collected_in_job_order(tmp_path):
     import json
     import shutil
