@@ -193,9 +193,11 @@ def makes_numbers(path: str) -> bool:
 def fingerprint(impl: str, commit: str | None = None, track: str | None = None) -> str:
     """A short hash of ``impl``'s code (see the module docstring) at ``commit`` (full hash), or in the working tree
     for None, with the presets of ``track`` (None: none, a cached model's code, :func:`code_of`)."""
-    if commit is None:
-        listed = [str(p.relative_to(PROJECT_ROOT)) for p in sorted((PROJECT_ROOT / "methods" / impl).rglob("*.py"))]
-        paths = [p for p in listed if makes_numbers(p)]
+    if commit is None:  # the files git tracks, as commit() labels runs: an untracked scratch file changes neither
+        tracked = _git("ls-files", "--", f"methods/{impl}/")
+        listed = (tracked.stdout.split() if tracked.returncode == 0 else
+                  [str(p.relative_to(PROJECT_ROOT)) for p in (PROJECT_ROOT / "methods" / impl).rglob("*.py")])  # fmt: skip
+        paths = sorted(p for p in listed if p.endswith(".py") and makes_numbers(p))
         read = lambda p: (PROJECT_ROOT / p).read_text() if (PROJECT_ROOT / p).exists() else None  # noqa: E731
     else:
         listed = _git("ls-tree", "-r", "--name-only", commit, "--", f"methods/{impl}/").stdout.split()
@@ -230,7 +232,9 @@ def stale_rows(rows, row_commits: dict, table_commits, code: dict | None = None,
         elif None in full:
             out[row] = f"its commit {commits[full.index(None)]} is not in this repository's history (or ran on uncommitted changes)"
         elif table_commit is None:
-            out[row] = "the table's commits are not on one line of history"
+            odd = [c for c in table_commits if known(c) is None]
+            out[row] = (f"the table's commit {odd[0]} is not in this repository's history (or ran on uncommitted changes)" if odd
+                        else "the table's commits are not on one line of history")  # fmt: skip
         elif any(c != table_commit for c in full):
             out[row] = f"from {', '.join(c[:7] for c in full if c != table_commit)}, not the table's {table_commit[:7]}"
         elif impl is not None and fingerprint(impl, full[0], track) != _judged(code, impl, track):

@@ -251,6 +251,32 @@ def test_a_row_is_judged_by_its_own_track_s_code(tmp_path):
     assert "methods/vae" in stale_rows(["vae"], {}, [head], code, track="paper")["vae"]
 
 
+def test_a_row_beside_a_dirty_one_is_stale_for_that_row_s_commit_not_for_history():
+    """A table with one row run on uncommitted changes: the clean rows name that label as the cause, not a history
+    that is in fact one line."""
+    from drapebench.staleness import current_code, known, stale_rows
+
+    head, dirty = known("HEAD"), known("HEAD")[:7] + "-dirty"
+    why = stale_rows(["lbs", "pbs"], {"lbs": [head], "pbs": [dirty]}, [head, dirty], current_code())
+    assert f"{dirty} is not in this repository's history" in why["lbs"] and "one line of history" not in why["lbs"]
+
+
+def test_an_untracked_file_in_a_method_s_folder_leaves_its_fingerprint_alone():
+    """A scratch file beside a method's code is not its code (runs' labels leave untracked files out too)."""
+    from drapebench import staleness
+    from drapebench.cache import PROJECT_ROOT
+
+    scratch = PROJECT_ROOT / "methods" / "lbs" / "_scratch_untracked_test.py"
+    before = staleness.fingerprint("lbs")
+    try:
+        scratch.write_text("x = 1\n")
+        staleness.fingerprint.cache_clear()
+        assert staleness.fingerprint("lbs") == before
+    finally:
+        scratch.unlink(missing_ok=True)
+        staleness.fingerprint.cache_clear()
+
+
 def test_tables_written_by_a_regeneration_do_not_make_its_runs_dirty(tmp_path, monkeypatch):
     """reproduce writes reports/ and README.md's status into the tree: the runs after it still name the clean commit;
     a changed source file makes them "-dirty"."""
