@@ -334,10 +334,9 @@ def run_all(jobs: list, at: str, say=print, workers: int = 1, runner=run_job, co
     (:func:`time_left`: each run left at the mean wall time of the finished runs of its kind so far); ``workers`` > 1
     runs that many at once, each worker pinned to its cores (:func:`worker_cpus`) and taking
     the next group of runs that share a model (:func:`drapebench.reproduce_cost.groups`) in order, once the run it
-    waits for (its ``after``) has ended. Before each run starts, ``code_now()`` (default: :func:`commit`) must still
-    give what it gave at the start (default: :func:`code_against` ``at``): code changed during a regeneration stops
-    it rather than stamp runs with code they did not run.
-    Returns the jobs that did not finish."""
+    waits for (its ``after``) has ended. Before each run starts, ``code_now()`` (default: :func:`code_against` of
+    ``at``) must still give what it gave at the start: code changed during a regeneration stops it rather than stamp
+    runs with code they did not run. Returns the jobs that did not finish."""
     from concurrent.futures import ThreadPoolExecutor
 
     from drapebench.reproduce_cost import grouped
