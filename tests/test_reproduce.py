@@ -359,10 +359,16 @@ def test_a_run_that_cannot_be_planned_is_its_own_group_and_the_rest_still_plan(m
     assert any(x.startswith("could not build the scene") for x in lines) and any("its scene cannot be built" in x for x in lines)
 
 
+def _ends_with_a_result(job, commit="c"):
+    """Leave ``job``'s folder as a finished run at ``commit`` leaves it: metrics and the reproduce stamp."""
+    job.dir.mkdir(parents=True)
+    (job.dir / "metrics.json").write_text("{}")
+    (job.dir / "reproduce.json").write_text(json.dumps({"overrides": list(job.overrides), "commit": commit}))
+
+
 def test_run_all_starts_a_group_only_after_the_run_it_waits_for(tmp_path, monkeypatch):
     """Two workers and three groups, the second waiting for the first group's first run (a reference set it
     builds): the third starts at once beside the first, the second only once that run has ended."""
-    import json
     import threading
 
     import drapebench.reproduce_cost as cost
@@ -382,9 +388,7 @@ def test_run_all_starts_a_group_only_after_the_run_it_waits_for(tmp_path, monkey
             free_worker_started.set()
         if job is jobs[0]:  # the set's first run lasts until the other worker has taken a group (or 10 s)
             free_worker_started.wait(10)
-        job.dir.mkdir(parents=True)
-        (job.dir / "metrics.json").write_text("{}")
-        (job.dir / "reproduce.json").write_text(json.dumps({"overrides": list(job.overrides), "commit": "c"}))
+        _ends_with_a_result(job)
         with lock:
             events.append(("end", job.dir.name))
         return 0
@@ -398,7 +402,6 @@ def test_run_all_starts_a_group_only_after_the_run_it_waits_for(tmp_path, monkey
 def test_run_all_with_two_workers_runs_each_group_in_turn_on_one_worker(tmp_path, monkeypatch):
     """Two workers, each pinned to its own cores: a group's runs go in order on one worker, the groups spread over
     both, a run that ends without a result is returned as failed."""
-    import json
     import threading
     import time
 
@@ -414,9 +417,7 @@ def test_run_all_with_two_workers_runs_each_group_in_turn_on_one_worker(tmp_path
         time.sleep(0.2)  # long enough for the other worker to take the next group
         if job is jobs[4]:
             return 1  # no result
-        job.dir.mkdir(parents=True)
-        (job.dir / "metrics.json").write_text("{}")
-        (job.dir / "reproduce.json").write_text(json.dumps({"overrides": list(job.overrides), "commit": "c"}))
+        _ends_with_a_result(job)
         return 0
 
     failed = run_all(jobs, "c", say=lambda s: None, workers=2, runner=runner)
@@ -594,12 +595,6 @@ def test_a_stopped_command_stops_its_runs_and_starts_no_other(tmp_path, workers)
     time.sleep(0.5)
     assert not [p for p in pids if alive(p)], "the command's runs outlived it"
     assert len(pids_file.read_text().split()) == workers  # the runs left never started
-
-
-def _ends_with_a_result(job, commit="c"):
-    job.dir.mkdir(parents=True)
-    (job.dir / "metrics.json").write_text("{}")
-    (job.dir / "reproduce.json").write_text(json.dumps({"overrides": list(job.overrides), "commit": commit}))
 
 
 def test_run_all_stops_when_the_code_changes_under_it(tmp_path, monkeypatch):
