@@ -132,6 +132,15 @@ def atomic_write(path: str | os.PathLike, mode: str = "wb", keep_suffix: bool = 
         raise
 
 
+@contextlib.contextmanager
+def atomic_write_set(paths) -> Iterator[list[Path]]:
+    """Temporary paths, one beside each of ``paths``, for files that replace ``paths`` as a set: none is renamed into
+    place until the block has written them all, so an exception while writing any (a failed plot) leaves every one of
+    ``paths`` as it was and removes the temporaries."""
+    with contextlib.ExitStack() as stack:
+        yield [stack.enter_context(atomic_write(p, mode=None)) for p in paths]
+
+
 def write_json(path: str | os.PathLike, obj: Any) -> None:
     """Atomically write ``obj`` as indented JSON."""
     with atomic_write(path, "w") as f:

@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from drapebench.cache import PROJECT_ROOT, atomic_write
+from drapebench.cache import PROJECT_ROOT, atomic_write, atomic_write_set
 from drapebench.plugins import declared, known_impl
 from drapebench.results import SUMMARY_COLUMNS, legend, metric_catalogue, metric_decimals, metric_info, metric_label
 from drapebench.run_archive import converged_of
@@ -791,17 +791,18 @@ def write_table(dirs, name: str, out: Path, command: str | None = None, methods:
         notes += "\n\n" + note
     out = gpu_out(Path(out), df)
     paths = [out.with_suffix(".md"), out.with_suffix(".tex"), out.with_suffix(".csv"), out.parent / f"{out.name}_runtime.png"]
-    with atomic_write(paths[0], "w") as f:
-        mixed = f" (rows from {df['commit'].nunique()} commits)" if "commit" in df and df["commit"].nunique() > 1 else ""
-        f.write(f"# {name}{mixed}\n\n{_markdown(t)}\n{notes}\n\n{about}\n\n{prov}\n")
+    if ts.bars:
+        paths.append(out.parent / f"{out.name}_bars.png")
+    mixed = f" (rows from {df['commit'].nunique()} commits)" if "commit" in df and df["commit"].nunique() > 1 else ""
     header = (prov, *about.split("\n\n"), seeds_note(df, group), *(p for n in warnings for p in n.split("\n\n") if p))
     comment = "".join(f"{{c}} {line}\n" for line in header)
-    with atomic_write(paths[1], "w") as f:
-        f.write(comment.format(c="%") + t.style.to_latex(hrules=True, multicol_align="c"))
-    write_csv(paths[2], header, t)
-    (pareto_plot if ts.pareto else runtime_plot)(df, paths[3], title=name)
-    if ts.bars:
-        paths.append(metric_bars_plot(df, list(ts.bars), out.parent / f"{out.name}_bars.png", title=name))
+    with atomic_write_set(paths) as tmps:  # the table's files are replaced together, or (on an error) none is
+        tmps[0].write_text(f"# {name}{mixed}\n\n{_markdown(t)}\n{notes}\n\n{about}\n\n{prov}\n")
+        tmps[1].write_text(comment.format(c="%") + t.style.to_latex(hrules=True, multicol_align="c"))
+        write_csv(tmps[2], header, t)
+        (pareto_plot if ts.pareto else runtime_plot)(df, tmps[3], title=name)
+        if ts.bars:
+            metric_bars_plot(df, list(ts.bars), tmps[4], title=name)
     return paths
 
 

@@ -37,6 +37,23 @@ def test_write_table_outputs_with_provenance(tmp_path):
         write_table([FIXTURES], "nope", tmp_path / "x")
 
 
+def test_a_failed_plot_leaves_the_tables_files_as_they_were(tmp_path, monkeypatch):
+    """A table's .md, .tex, .csv and plot are replaced as a set: an error in the plot (written last) replaces none."""
+    import drapebench.report as report
+
+    before = write_table([FIXTURES], "baseline", tmp_path / "baseline", command="first")
+    texts = {p: p.read_bytes() for p in before}
+
+    def broken_plot(*args, **kwargs):
+        raise RuntimeError("plot failed")
+
+    monkeypatch.setattr(report, "runtime_plot", broken_plot)
+    with pytest.raises(RuntimeError, match="plot failed"):
+        write_table([FIXTURES], "baseline", tmp_path / "baseline", command="second")
+    assert {p: p.read_bytes() for p in before} == texts
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in before)  # no temporary left behind
+
+
 def test_the_provenance_names_the_runs_torch_threads(tmp_path):
     """runtime_vs_error's ms/frame depend on the threads each run drew with (``reproduce --jobs`` pins its share)."""
     import json
