@@ -160,16 +160,28 @@ def commit() -> str:
 
 
 def _diff_from(base: str) -> bytes | None:
-    """``git diff base`` of the tracked files, less what a regeneration writes (:data:`drapebench.results.GENERATED`);
-    None when git cannot compare them (``base`` not a commit, no git)."""
-    from drapebench.results import GENERATED
+    """``git diff base`` of the tracked files, less what a regeneration writes (:data:`drapebench.results.GENERATED`),
+    followed by the path and bytes of each :func:`drapebench.results.untracked_code` file; None when git cannot
+    compare them (``base`` not a commit, no git)."""
+    from drapebench.results import GENERATED, untracked_code
 
     excluded = [f":(exclude){g}" for g in GENERATED]
     try:
         done = subprocess.run(["git", "diff", base, "--", ".", *excluded], cwd=PROJECT_ROOT, capture_output=True, check=False)
     except OSError:
         return None
-    return done.stdout if done.returncode == 0 else None
+    if done.returncode != 0:
+        return None
+    untracked = b"".join(b"untracked " + p.encode() + b"\n" + _bytes(PROJECT_ROOT / p) for p in untracked_code(PROJECT_ROOT))
+    return done.stdout + untracked
+
+
+def _bytes(path: Path) -> bytes:
+    """``path``'s bytes; empty when it went away after git listed it."""
+    try:
+        return path.read_bytes()
+    except OSError:
+        return b""
 
 
 def _short(label: str) -> str:

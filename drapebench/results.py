@@ -112,17 +112,30 @@ def headline(record: dict, names=("eps_e", "eps_a", "eps_c", "vertex_error_mm", 
 
 
 GENERATED = ("reports", "README.md")  # what `python -m drapebench.reproduce` writes into the tree: no run reads them
+CODE = ("conf", "methods", "drapebench", "run.py")  # what a run reads: an untracked file there is code it may run
+
+
+def untracked_code(root: Path | None = None) -> list[str]:
+    """The untracked, not ignored files under :data:`CODE` (paths relative to ``root``, default the project's;
+    sorted): a run may read them (a new ``conf/method/x.yaml`` that a sweep's ``method=glob(*)`` picks up), so
+    they make its commit label dirty. Empty when git cannot list them."""
+    try:
+        done = subprocess.run(["git", "ls-files", "--others", "--exclude-standard", "-z", "--", *CODE], cwd=root or PROJECT_ROOT,
+                              capture_output=True, text=True, check=True)  # fmt: skip
+    except (OSError, subprocess.CalledProcessError):
+        return []
+    return sorted(p for p in done.stdout.split("\0") if p)
 
 
 def _head_commit() -> str:
     """HEAD commit of the project now (with ``-dirty`` if tracked files have changes, but for the tables and the
     README's status that :data:`GENERATED` names: a regeneration that has written some tables still runs the commit's
-    code), or ``unknown``."""
+    code; or if there are :func:`untracked_code` files), or ``unknown``."""
     try:
         sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=PROJECT_ROOT, capture_output=True, text=True, check=True).stdout.strip()
         dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--", ".", *(f":(exclude){g}" for g in GENERATED)],
                                cwd=PROJECT_ROOT, capture_output=True, text=True, check=True).stdout.strip()  # fmt: skip
-        return sha + ("-dirty" if dirty else "")
+        return sha + ("-dirty" if dirty or untracked_code() else "")
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
 

@@ -630,6 +630,32 @@ def test_code_against_names_an_edit_of_the_tracked_code_only(monkeypatch):
     assert code_against("b" * 40).startswith("b" * 40 + "-dirty+") and code_against("c" * 40) == "c" * 40
 
 
+def test_an_untracked_config_where_runs_read_code_changes_the_label(tmp_path, monkeypatch):
+    """A new, uncommitted ``conf/method/x.yaml`` (which a sweep's ``glob(*)`` would run) is code: the label moves off
+    the commit, and changes with the file's content; an untracked file outside the code does not count."""
+    import subprocess
+
+    from drapebench import results
+    from drapebench.reproduce import code_against
+
+    git = lambda *a: subprocess.run(["git", "-C", str(tmp_path), *a], check=True, capture_output=True, text=True)  # noqa: E731
+    git("init", "-q")
+    (tmp_path / "run.py").write_text("x = 1\n")
+    git("add", "-A")
+    git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", "c")
+    head = git("rev-parse", "HEAD").stdout.strip()
+    monkeypatch.setattr(reproduce, "PROJECT_ROOT", tmp_path)
+    monkeypatch.setattr(results, "PROJECT_ROOT", tmp_path)
+    (tmp_path / "scratch.txt").write_text("notes\n")
+    assert code_against(head) == head
+    (tmp_path / "conf" / "method").mkdir(parents=True)
+    (tmp_path / "conf" / "method" / "x.yaml").write_text("name: x\n")
+    first = code_against(head)
+    assert first.startswith(head + "-dirty+")
+    (tmp_path / "conf" / "method" / "x.yaml").write_text("name: y\n")
+    assert code_against(head) not in (first, head)
+
+
 def test_a_run_that_raises_ends_and_does_not_hold_up_the_runs_waiting_for_it(tmp_path, monkeypatch):
     """Two workers; the second group waits for the first group's run, whose runner raises (a full disk, a failed
     start): the error is said, the run counts as failed, and the waiting group still runs (no hang)."""

@@ -279,7 +279,7 @@ def test_an_untracked_file_in_a_method_s_folder_leaves_its_fingerprint_alone():
 
 def test_tables_written_by_a_regeneration_do_not_make_its_runs_dirty(tmp_path, monkeypatch):
     """reproduce writes reports/ and README.md's status into the tree: the runs after it still name the clean commit;
-    a changed source file makes them "-dirty"."""
+    a changed source file, or an untracked one where runs read code, makes them "-dirty"."""
     import subprocess
 
     from drapebench import results
@@ -296,5 +296,11 @@ def test_tables_written_by_a_regeneration_do_not_make_its_runs_dirty(tmp_path, m
     (tmp_path / "README.md").write_text("new status\n")
     clean = results._head_commit()
     assert len(clean) == 40 and not clean.endswith("-dirty")
+    (tmp_path / "notes.txt").write_text("not code\n")  # an untracked file that no run reads
+    assert results._head_commit() == clean
+    (tmp_path / "conf" / "method").mkdir(parents=True)
+    (tmp_path / "conf" / "method" / "scratch.yaml").write_text("name: scratch\n")  # one a sweep's glob(*) would run
+    assert results._head_commit() == clean + "-dirty" and results.untracked_code() == ["conf/method/scratch.yaml"]
+    (tmp_path / "conf" / "method" / "scratch.yaml").unlink()
     (tmp_path / "code.py").write_text("x = 2\n")
     assert results._head_commit() == clean + "-dirty"
