@@ -561,6 +561,9 @@ def main(argv=None) -> int:
 
         recorded, restored = sync(root, args.archive, at)
         print(f"archive {args.archive}: {restored} runs restored from it, {recorded} recorded into it")
+        if left := unplanned(args.archive):
+            print(f"archive {args.archive}: {len(left)} runs that no table plans any longer (e.g. {left[0]}): no table reads "
+                  "them; delete them")
     jobs = plan(names, root, args.quick)
     if args.dry_run:
         from drapebench.reproduce_cost import summary
@@ -604,6 +607,15 @@ def _archiving(archive: Path, root: Path):
         return code
 
     return runner
+
+
+def unplanned(archive: Path) -> list[Path]:
+    """The run folders in ``archive`` (a run archive, laid out as the runs folder) that no table's sweeps plan any
+    longer (a sweep changed since they ran), sorted: no table reads them; delete them."""
+    from drapebench.run_archive import STAMP
+
+    planned = {j.dir for j in plan(list(specs()), archive)}
+    return sorted(d for d in (s.parent for s in archive.rglob(STAMP)) if d not in planned)
 
 
 def _needed_by(name: str, tables: list) -> bool:

@@ -118,3 +118,18 @@ def test_an_archived_record_names_its_checkpoint_without_the_machines_folders(tm
     kept = json.loads((tmp_path / "archive/t/0/0_x/metrics.json").read_text())
     assert kept["checkpoint"] == "cache/checkpoints/gaps_0.pt" and kept["eps_c"] == 0.1
     assert portable_checkpoint(None) is None and portable_checkpoint("elsewhere/x.pt") == "elsewhere/x.pt"
+
+
+def test_runs_that_no_table_plans_any_longer_are_named(tmp_path):
+    """A sweep that changed leaves its old runs in the archive, which no table reads: they are named (and the
+    committed archive holds none)."""
+    from drapebench.cache import PROJECT_ROOT
+    from drapebench.reproduce import plan, unplanned
+
+    kept = plan(["baseline"], tmp_path)[0].dir
+    gone = tmp_path / "baseline" / "9" / "0_0123456789"
+    for d in (kept, gone):
+        d.mkdir(parents=True)
+        (d / "reproduce.json").write_text("{}")
+    assert unplanned(tmp_path) == [gone]
+    assert unplanned(PROJECT_ROOT / "reports" / "runs") == []
