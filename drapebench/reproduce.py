@@ -559,7 +559,11 @@ def main(argv=None) -> int:
     elif args.archive:
         from drapebench.run_archive import sync
 
-        recorded, restored = sync(root, args.archive, at)
+        try:
+            recorded, restored = sync(root, args.archive, at, {j.dir.relative_to(root) for j in plan(list(tables), root, args.quick)})
+        except ValueError as err:
+            print(f"archive {args.archive}: {err}", file=sys.stderr)
+            return 1
         print(f"archive {args.archive}: {restored} runs restored from it, {recorded} recorded into it")
         if left := unplanned(args.archive):
             print(f"archive {args.archive}: {len(left)} runs that no table plans any longer (e.g. {left[0]}): no table reads "

@@ -93,20 +93,45 @@ def record(run: Path, dest: Path) -> None:
     _copy(run, dest, RECORD, converged, portable=True)
 
 
+def _result(run: Path) -> tuple:
+    """What a table reads of the finished run ``run``: its metrics (checkpoint path as the archive writes it) or its
+    recorded failure."""
+    def read(name: str) -> dict | None:
+        path = run / name
+        return json.loads(path.read_text()) if path.exists() else None
+
+    metrics = read("metrics.json")
+    if metrics and metrics.get("checkpoint"):
+        metrics["checkpoint"] = portable_checkpoint(metrics["checkpoint"])
+    return metrics, read("failed.json")
+
+
 def _vacant(folder: Path) -> bool:
     """Whether nothing is in ``folder`` (absent or empty): a run is restored only there, never over an unfinished run's
     files (a crashed one, or one running now)."""
     return not folder.exists() or not any(folder.iterdir())
 
 
-def sync(root: Path, archive: Path, at: str | None = None) -> tuple[int, int]:
+def sync(root: Path, archive: Path, at: str | None = None, planned: set | None = None) -> tuple[int, int]:
     """Bring the runs folder ``root`` and the archive ``archive`` level: a finished run of ``root`` that the archive
     lacks is recorded (:func:`record`), an archived run is restored into ``root`` where its folder is vacant (its
     record's files; no ``losses.csv``). Where both hold a run at different commits, the one at ``at`` (the
-    regeneration's commit) replaces the other; with neither at ``at`` (or ``at`` None) both stay. Run it while no
-    regeneration runs in ``root``. Returns (recorded, restored)."""
+    regeneration's commit) replaces the other; with neither at ``at`` (or ``at`` None) both stay. Where both hold one
+    at the same commit and overrides with other results (a run made again), it raises a ValueError naming both and
+    changes nothing. ``planned``: the run folders (relative to both) that tables plan; others are neither recorded nor
+    restored (a sweep that changed leaves its old runs behind). Run it while no regeneration runs in ``root``.
+    Returns (recorded, restored)."""
     root, archive = Path(root), Path(archive)
     runs, kept = _finished(root), _finished(archive)
+    if planned is not None:
+        runs, kept = ({rel: d for rel, d in found.items() if rel in planned} for found in (runs, kept))
+    differ = sorted(rel for rel in runs.keys() & kept.keys()
+                    if (runs[rel] / STAMP).read_bytes() == (kept[rel] / STAMP).read_bytes() and _result(runs[rel]) != _result(kept[rel]))  # fmt: skip
+    if differ:
+        raise ValueError(f"{len(differ)} runs have other results in the runs folder than in the archive at the same commit and "
+                         f"overrides (made again, e.g. {root / differ[0]} against {archive / differ[0]}): a table would read the "
+                         "runs folder's while a clone has the archive's; delete the stale copy (the run's folder in the runs "
+                         "folder, or its record in the archive) and rerun")  # fmt: skip
     recorded = restored = 0
     for rel, run in runs.items():
         if rel not in kept or ((kept[rel] / STAMP).read_bytes() != (run / STAMP).read_bytes() and at is not None

@@ -5,6 +5,7 @@ import json
 
 import numpy as np
 import pandas as pd
+import pytest
 
 from drapebench.report import collect
 from drapebench.reproduce import Job, finished
@@ -120,6 +121,26 @@ def test_an_archived_record_names_its_checkpoint_without_the_machines_folders(tm
     assert portable_checkpoint(None) is None and portable_checkpoint("elsewhere/x.pt") == "elsewhere/x.pt"
 
 
+def test_a_run_made_again_at_the_same_commit_with_another_result_is_named_not_read_silently(tmp_path, capsys):
+    """The runs folder and the archive hold one run (same commit and overrides) with different results: a table would
+    read the local one, a clone the archived one. The sync names both and changes nothing; the command exits 1."""
+    from drapebench import reproduce
+
+    root, archive = tmp_path / "runs", tmp_path / "archive"
+    rel = reproduce.plan(["baseline"], root)[0].dir.relative_to(root)  # a run a table plans
+    run = _run(root, rel, ["seed=0"])
+    assert sync(root, archive) == (1, 0) and sync(root, archive, AT) == (0, 0)  # the record's portable checkpoint is no difference
+    (run / "metrics.json").write_text(json.dumps({**json.loads((run / "metrics.json").read_text()), "eps_c": 0.3}))
+    with pytest.raises(ValueError, match="other results in the runs folder than in the archive") as err:
+        sync(root, archive, AT)
+    assert str(run) in str(err.value) and str(archive / rel) in str(err.value)
+    assert json.loads((archive / rel / "metrics.json").read_text())["eps_c"] == 0.1  # nothing changed
+
+    assert reproduce.main(["--tables", "baseline", "--write-only", "--runs", str(root), "--archive", str(archive),
+                           "--out", str(tmp_path / "out")]) == 1
+    assert "delete the stale copy" in capsys.readouterr().err
+
+
 def test_runs_that_no_table_plans_any_longer_are_named(tmp_path):
     """A sweep that changed leaves its old runs in the archive, which no table reads: they are named (and the
     committed archive holds none)."""
@@ -132,4 +153,9 @@ def test_runs_that_no_table_plans_any_longer_are_named(tmp_path):
         d.mkdir(parents=True)
         (d / "reproduce.json").write_text("{}")
     assert unplanned(tmp_path) == [gone]
+    root = tmp_path / "runs"
+    (root / "baseline" / "9" / "0_0123456789").mkdir(parents=True)  # an unplanned run in a runs folder is not recorded back
+    for name in ("reproduce.json", "metrics.json"):
+        (root / "baseline" / "9" / "0_0123456789" / name).write_text("{}")
+    assert sync(root, tmp_path / "archive", planned={kept.relative_to(tmp_path)}) == (0, 0)
     assert unplanned(PROJECT_ROOT / "reports" / "runs") == []
