@@ -192,7 +192,9 @@ class Trained(NamedTuple):
     path; ``stopped``: how its training ended ("done"; "clock": its lr decayed by ``train.max_minutes``' clock;
     "time": cut by it); ``trained_at``: the commit whose code trained it ("unrecorded" for a checkpoint stored before
     it was recorded); ``steps``: its optimisation steps (None: unrecorded); ``body``: the name of the body model it
-    trained on (``method.trained_body``). A method with nothing learned: its fit's time, the rest None."""
+    trained on (``method.trained_body``); ``model``: the content hash of its trained state (12 hex digits: two runs of
+    one checkpoint path with different hashes read different trainings of it). A method with nothing learned: its
+    fit's time, the rest None."""
 
     train_s: float
     checkpoint: str | None = None
@@ -200,6 +202,7 @@ class Trained(NamedTuple):
     trained_at: str | None = None
     steps: int | None = None
     body: str | None = None
+    model: str | None = None
 
 
 def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir: Path | None = None) -> Trained:
@@ -229,7 +232,8 @@ def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir
         elif stopped == "clock":
             log.warning("checkpoint %s ran every step, but its learning rate decayed by train.max_minutes' clock ahead of the "
                         "steps: its model depends on the speed of the machine that trained it; force=true retrains it", path.name)  # fmt: skip
-        return Trained(state["train_s"], str(path), stopped, state.get("commit", "unrecorded"), state.get("n_steps"), method.trained_body(data.body).name)
+        return Trained(state["train_s"], str(path), stopped, state.get("commit", "unrecorded"), state.get("n_steps"), method.trained_body(data.body).name,
+                       content_hash(state["method"], length=12))
     if method.needs_reference:  # its reference drapes are simulated (or read) before the fit's clock starts: data, not training
         data.read_train()
     report = method.fit(data, train_cfg if log_dir is None else {**train_cfg, "log_dir": str(log_dir)})
@@ -240,7 +244,8 @@ def _checkpoint(method, cfg: DictConfig, garment, data, train_cfg: dict, log_dir
     CHECKPOINTS.store(path, lambda tmp: torch.save({"method": state, "train_s": report.train_s, "history": report.history,
                                                     "evaluations": report.evaluations, "stopped": report.stopped,
                                                     "n_steps": report.n_steps, "commit": git_commit(), "code": code}, tmp))  # fmt: skip
-    return Trained(report.train_s, str(path), report.stopped, git_commit(), report.n_steps, method.trained_body(data.body).name)
+    return Trained(report.train_s, str(path), report.stopped, git_commit(), report.n_steps, method.trained_body(data.body).name,
+                   content_hash(state, length=12))
 
 
 def _write_fit_logs(log_dir: Path | None, history: list[dict], evaluations: list[dict]) -> None:
@@ -427,7 +432,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
         **{f"ms_{k}": v / seq.n_frames for k, v in result.timings_ms.items() if k != "setup"},
         "seed": int(cfg.seed), "train_seed": int(cfg.train.seed), "device": str(cfg.device), "experiment": cfg.experiment_name, "checkpoint": trained.checkpoint, "commit": git_commit(),
         **{key: value for key, value in (("train_stopped", trained.stopped), ("trained_at", trained.trained_at), ("train_steps", trained.steps),
-                                          ("train_body", trained.body)) if value is not None}, **({"reference_error": reference_error} if reference_error else {}),
+                                          ("train_body", trained.body), ("model_hash", trained.model)) if value is not None}, **({"reference_error": reference_error} if reference_error else {}),
     }  # fmt: skip
     if export != "none":
         from drapebench.export import Drape, export_drape

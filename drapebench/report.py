@@ -342,6 +342,23 @@ def trained_note(df: pd.DataFrame) -> str:
             + "; ".join(f"{m} {c}" for m, c in per.items()) + ".")
 
 
+def mixed_models_note(df: pd.DataFrame) -> str:
+    """A warning naming each model (method, checkpoint) whose runs in the table read different trainings of it
+    (``model_hash`` in metrics.json, the content hash of the trained state: a training resumed after an interruption,
+    or made again on another machine, can differ from the first): its cells mix models, and the scoreboard's "cases with
+    the same numbers count once" no longer sees their copies. "" when every model is one training, or unrecorded."""
+    if "model_hash" not in df or "checkpoint" not in df:
+        return ""
+    known = df[df["model_hash"].notna() & df["checkpoint"].notna()]
+    trainings = known.groupby(["method", "checkpoint"], sort=False)["model_hash"].agg(lambda h: list(dict.fromkeys(h)))
+    mixed = trainings[trainings.map(len) > 1]
+    if mixed.empty:
+        return ""
+    said = "; ".join(f"{method} ({Path(str(checkpoint)).name}): {', '.join(hashes)}" for (method, checkpoint), hashes in mixed.items())
+    return (f"**Mixed trainings**: the runs of one model read different trainings of it ({said}): its cells mix models; delete "
+            "the runs of one training (and its cached checkpoint) and run them again.")
+
+
 def presets_note(df: pd.DataFrame) -> str:
     """The training and reference-set presets of the runs behind a table, "**Presets**: train=cpu, data=cpu." (read by
     the scoreboard: a table's rows are judged by those presets' files, :mod:`drapebench.staleness`), or a note that
@@ -786,7 +803,7 @@ def write_table(dirs, name: str, out: Path, command: str | None = None, methods:
     if ts.pareto and speedups(df):
         notes += "\n\n" + speedups(df)
     notes += "\n\n" + seeds_note(df, group)
-    warnings = [n for n in (training_note(df), presets_note(df), time_cut_note(df), commits_note(df), trained_note(df)) if n]  # written to every format below
+    warnings = [n for n in (training_note(df), presets_note(df), time_cut_note(df), commits_note(df), trained_note(df), mixed_models_note(df)) if n]  # written to every format below
     for note in warnings:
         notes += "\n\n" + note
     out = gpu_out(Path(out), df)

@@ -183,13 +183,16 @@ def test_training_writes_losses_and_evaluations_csv_into_the_run_directory_and_a
     garment = type("G", (), {"vertices": torch.zeros(3, 3), "faces": torch.zeros(1, 3, dtype=torch.long)})()
     data = type("D", (), {"body": body_lowres, "material": None})()
     train_cfg = {**OmegaConf.to_container(cfg.train, resolve=True), "dataset": None}
+    models = set()
     for run_dir in (tmp_path / "a", tmp_path / "b"):  # a rerun in a new run directory loads the checkpoint
         run_dir.mkdir()
         trained = _checkpoint(Learned(), cfg, garment, data, train_cfg, log_dir=run_dir)
         assert trained.trained_at == git_commit() and trained.steps == 1 and trained.body == "anny_lowres"  # the code, steps and body that trained it
+        models.add(trained.model)
         assert (run_dir / "losses.csv").read_text().splitlines() == ["step,loss", "1,0.5"]
         assert (run_dir / "evaluations.csv").read_text().splitlines() == ["epoch,step,colliding", "0,1,2.0"]
     assert len(Learned.fits) == 1 and Learned.fits[0]["log_dir"] == str(tmp_path / "a")
+    assert len(models) == 1 and len(models.pop()) == 12  # the trained state's hash, the same when the checkpoint is loaded
     Learned.settings = {"width": 64}  # a changed code default of the method retrains
     (tmp_path / "c").mkdir()
     _checkpoint(Learned(), cfg, garment, data, train_cfg, log_dir=tmp_path / "c")

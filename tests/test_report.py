@@ -646,3 +646,16 @@ def test_a_table_names_its_runs_presets_and_the_scoreboard_judges_it_by_them(tmp
     (tmp_path / "runs" / "9_pbs_tshirt" / "config.yaml").write_text("train:\n  name: paper\ndata:\n  name: cpu\n")
     paths = write_table([tmp_path / "runs"], "baseline", tmp_path / "out2" / "t", command="pytest")
     assert read_table(paths[2]).track == "paper+cpu"
+
+
+def test_a_model_whose_runs_read_two_trainings_of_it_is_named(tmp_path):
+    """One checkpoint path, two trainings (a resumed one differs): the table says its cells mix models; one training
+    read by every run, or runs that recorded no hash, say nothing."""
+    from drapebench.report import mixed_models_note
+
+    ckpt = "cache/checkpoints/vae_96d358058bc9a0f5.pt"
+    df = pd.DataFrame({"method": ["vae", "vae", "lbs"], "checkpoint": [ckpt, ckpt, None], "model_hash": ["a" * 12, "b" * 12, None]})
+    note = mixed_models_note(df)
+    assert "vae (vae_96d358058bc9a0f5.pt): aaaaaaaaaaaa, bbbbbbbbbbbb" in note and "Mixed trainings" in note
+    assert mixed_models_note(df.assign(model_hash=["a" * 12, "a" * 12, None])) == ""
+    assert mixed_models_note(df.drop(columns="model_hash")) == ""
