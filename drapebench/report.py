@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import platform
 import re
 import sys
@@ -509,6 +510,18 @@ def _annotate(ax, labels, ms, err, colours=None) -> None:
     ax.margins(x=0.08, y=0.12)  # room for the labels of the outermost points
 
 
+def _minor_labels(span: float):
+    """The formatter of a log axis' minor ticks over ``span`` (max / min): every one labelled within a factor 3, those
+    at 2, 3 and 5 times a power of ten within 30 (all of them crowd near each power: 0.70.80.91), none beyond."""
+    import matplotlib.ticker
+
+    def label(v: float, _) -> str:
+        mantissa = round(v / 10 ** math.floor(math.log10(v) + 1e-9), 6)
+        return f"{v:g}" if span < 3 or (span < 30 and mantissa in (2, 3, 5)) else ""
+
+    return matplotlib.ticker.FuncFormatter(label)
+
+
 def runtime_plot(df: pd.DataFrame, path: Path, title: str = "") -> Path:
     """Scatter of drape time (ms/frame, log x) against :func:`runtime_error`, one marker per run: its
     colour the method, its shape the scene where the runs' scenes differ (garment, body shape, motion,
@@ -544,7 +557,7 @@ def runtime_plot(df: pd.DataFrame, path: Path, title: str = "") -> Path:
     plain = matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}")  # 2, not 2 x 10^0
     ax.xaxis.set_major_formatter(plain)
     span = df["ms_per_frame"].max() / max(df["ms_per_frame"].min(), 1e-9)
-    ax.xaxis.set_minor_formatter(plain if span < 30 else matplotlib.ticker.NullFormatter())  # minor labels when few decades
+    ax.xaxis.set_minor_formatter(_minor_labels(span))
     ax.set_xlabel("drape time per frame (ms, log scale; lower is better)", fontsize=9)
     info = metric_info(error)
     ax.set_ylabel(f"{error}: {info.meaning} ({info.unit})", fontsize=9)

@@ -659,3 +659,13 @@ def test_a_model_whose_runs_read_two_trainings_of_it_is_named(tmp_path):
     assert "vae (vae_96d358058bc9a0f5.pt): aaaaaaaaaaaa, bbbbbbbbbbbb" in note and "Mixed trainings" in note
     assert mixed_models_note(df.assign(model_hash=["a" * 12, "a" * 12, None])) == ""
     assert mixed_models_note(df.drop(columns="model_hash")) == ""
+
+
+def test_a_log_axis_labels_few_minor_ticks_where_they_would_crowd():
+    """Over one decade and a half the minor ticks at 2, 3 and 5 are labelled, not 0.6, 0.7, 0.8 and 0.9 (which ran
+    into each other and into 1); within a factor 3 every one; over several decades none."""
+    from drapebench.report import _minor_labels
+
+    ticks = [0.5, 0.6, 0.7, 0.8, 0.9, 2, 3, 4, 5, 6, 20, 30]
+    assert [_minor_labels(20)(v, 0) for v in ticks] == ["0.5", "", "", "", "", "2", "3", "", "5", "", "20", "30"]
+    assert _minor_labels(2)(0.7, 0) == "0.7" and _minor_labels(100)(2, 0) == ""
