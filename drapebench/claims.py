@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
+from decimal import Decimal
 from pathlib import Path
 
 import numpy as np
@@ -29,12 +30,14 @@ NO_SEEDS = 10**6  # the seed count of a paper's bound: exact, no spread
 
 @dataclass(frozen=True)
 class Value:
-    """One table cell: its mean, the std over seeds (nan for one seed: a "± std" without n is over frames) and
-    the number of seeds."""
+    """One table cell: its mean, the std over seeds (nan for one seed: a "± std" without n is over frames), the
+    number of seeds and its resolution: half the last digit it was printed with (a cell "0.013 ± 0.000 (n=3)" is
+    known to ± 0.0005; 0 for an exact bound; not part of its equality, which is the numbers')."""
 
     mean: float
     std: float
     n: int
+    resolution: float = field(default=0.0, compare=False)
 
     def text(self) -> str:
         """The value as the claims table shows it: 3 significant digits, "± std (n=k)" over seeds."""
@@ -42,8 +45,14 @@ class Value:
         return mean + (f" ± {self.std:.2g} (n={self.n})" if 1 < self.n < NO_SEEDS else "")
 
     def spread(self) -> float:
-        """The half-width of the value's band: its std over seeds, 0 for one seed or an exact bound."""
-        return self.std if 1 < self.n < NO_SEEDS else 0.0
+        """The half-width of the value's band: its std over seeds (0 for one seed or an exact bound), and at least
+        its resolution (a std printed as 0 is under half the last digit, not zero)."""
+        return max(self.std if 1 < self.n < NO_SEEDS else 0.0, self.resolution)
+
+
+def _half_digit(number: str) -> float:
+    """Half a unit of the last digit ``number`` (as printed) shows: "0.013" -> 0.0005, "12" -> 0.5."""
+    return 0.5 * 10.0 ** Decimal(number).as_tuple().exponent
 
 
 def parse_cell(cell) -> Value | None:
@@ -53,7 +62,8 @@ def parse_cell(cell) -> Value | None:
     if not m:
         return None
     n = int(m.group(3) or 1)
-    return Value(float(m.group(1)), float(m.group(2)) if n > 1 else float("nan"), n)
+    resolution = min(_half_digit(x) for x in m.group(1, 2) if x is not None)  # report.py prints both with one precision
+    return Value(float(m.group(1)), float(m.group(2)) if n > 1 else float("nan"), n, resolution)
 
 
 @dataclass
@@ -120,15 +130,17 @@ VERDICTS = ("reproduced", "holds, one seed", "holds, control not run", "partly",
 RULES = (
     "A claim is tested case by case (a group x metric x pair of rows; cases with the same numbers, a quantity that "
     "does not depend on the group, count once). A case **holds** when its relation holds on the means, the two bands "
-    "mean ± std over seeds do not overlap (a level: the band stays under the bound) and the difference is at least "
+    "mean ± std over seeds (at least ± half the last printed digit) do not overlap (a level: the band stays under the "
+    "bound, itself a band where it scales or adds a measured value) and the difference is at least "
     "the metric's resolution floor (below); a case whose bands overlap is a **tie**, one whose difference is under the "
     "floor is **too small to tell**, and neither counts. Every claim names its **control** (lbs, the method's untrained "
     "or ARAP stage, or its loss's optimum, put in place of the row the claim credits); a case is credited to the "
     "method only where the control's means fail it: one the control holds, or meets on its means inside the bands "
     "or the floor, is credited to the scene. Verdicts: **reproduced**: every case holds for the method and "
     "not for the control, each cell over several seeds; **holds, one seed**: the same with a one-seed cell (spread "
-    "unknown); **holds, control not run**: it holds but the table has no control row; **partly (k/m)**: k of m "
-    "distinct cases hold (and the control fails them); **scene-determined**: the cases that hold, the control "
+    "unknown); **holds, control not run**: it holds but the table lacks a control the claim names (or its cells); "
+    "**partly (k/m)**: k of m distinct cases hold (and the control fails them; \", control not run\" where a "
+    "control is missing); **scene-determined**: the cases that hold, the control "
     "meets them too; **inside the spread**: no case holds or fails beyond the bands; **too small to tell**: every difference is "
     "under the floor; **not reproduced**: no case holds and one holds the other way (**not reproduced, one seed**: "
     "each such case on one-seed cells, spread unknown); **stale: ...**: a row it reads "
@@ -143,9 +155,9 @@ RULES = (
 def resolution_floors(tables: dict) -> dict:
     """{(table, metric label): (floor, cells, identical)} and {metric label: (...)}: a metric's floor in a table is
     the median seeds' std of its multi-seed cells there that have a spread (what two seeds of one method typically
-    differ by on that scene), with the number of such cells and of cells whose seeds gave identical values
-    (deterministic rows: a rerun repeats the number exactly). Untrained rows (``<m>_untrained``) are left out: their
-    spread is that of random initialisations, not what a measurement can resolve. The metric's own entry pools every
+    differ by on that scene), with the number of such cells and of cells whose seeds agree to the printed digit
+    (their std prints as 0: deterministic rows, or a spread under the last digit). Untrained rows (``<m>_untrained``)
+    are left out: their spread is that of random initialisations, not what a measurement can resolve. The metric's own entry pools every
     CPU table of ``tables`` (name -> :class:`Table`), for a table without multi-seed cells of it; a metric with none is
     absent (floor 0)."""
     spreads: dict = {}
@@ -209,11 +221,15 @@ def _pairs(claim: Claim, group: str) -> list:
 
 
 def _groups(claim: Claim, table: Table) -> list:
+    """The groups a claim is tested on: its ``groups``, else those its ``greater`` dict names (in the table's order,
+    then those the table lacks, which are then missing cells), else the table's; never a "within" claim's reference
+    (a group compared with itself always holds)."""
     if claim.groups:
-        return list(claim.groups)
-    if isinstance(claim.greater, dict):
-        return [g for g in table.groups if g in claim.greater] if "*" not in claim.greater else table.groups
-    groups = table.groups
+        groups = list(claim.groups)
+    elif isinstance(claim.greater, dict) and "*" not in claim.greater:
+        groups = [g for g in table.groups if g in claim.greater] + [g for g in claim.greater if g not in table.groups]
+    else:
+        groups = table.groups
     return [g for g in groups if g != claim.reference] if claim.kind == "within" else groups
 
 
@@ -251,14 +267,16 @@ def cases(claim: Claim, table: Table, sub: dict | None = None) -> tuple[list, li
                         out.append(Case(where, metric, r(a), r(b), va, vb))
                 continue
             v = get(r(claim.row), group, metric)
-            bound = claim.bound
+            bound = Value(claim.bound, 0.0, NO_SEEDS)
             if claim.kind == "within" or claim.bound_metric:
                 ref = get(r(claim.row), claim.reference, metric) if claim.kind == "within" else get(r(claim.row), group, claim.bound_metric)
                 if ref is None:
                     continue
-                bound = claim.bound * ref.mean if claim.kind == "within" else claim.bound + ref.mean
+                scale = claim.bound if claim.kind == "within" else 1.0  # a bound x ref, or the bound + ref: ref's band carries over
+                bound = Value(claim.bound * ref.mean if claim.kind == "within" else claim.bound + ref.mean,
+                              scale * ref.std, ref.n, scale * ref.resolution)  # fmt: skip
             if v:
-                out.append(Case(where, metric, "bound", r(claim.row), Value(bound, 0.0, NO_SEEDS), v))
+                out.append(Case(where, metric, "bound", r(claim.row), bound, v))
     return out, missing
 
 
@@ -268,7 +286,7 @@ def _case_text(c: Case, claim: Claim, verdict: str) -> str:
         return f"{c.lo} {c.vlo.text()} {'<' if c.vhi.mean > c.vlo.mean else '≥'} {c.hi} {c.vhi.text()}{mark}"
     if c.hi == "bound":
         how = f" ({claim.bound:g} x {claim.reference})" if claim.kind == "within" else f" ({claim.bound:g} + {claim.bound_metric})" if claim.bound_metric else ""
-        bound = f"{c.vhi.mean:.3g}{how}"
+        bound = f"{c.vhi.text()}{how}"
         return f"{c.where} {c.vlo.text()} {'≤' if c.vlo.mean <= c.vhi.mean else '>'} {bound}{mark}".strip()
     return f"{c.hi} {c.vhi.text()} {'>' if c.vhi.mean > c.vlo.mean else '≤'} {c.lo} {c.vlo.text()}{mark}"
 
@@ -306,16 +324,16 @@ def evaluate(claim: Claim, table: Table | None, floors: dict | None = None, code
     if len(distinct) < len(found):
         shown += f" ({len(found)} cases, {len(distinct)} distinct: the others repeat the same numbers)"
     held = [c for c in distinct if outcome[c.key()] == "holds"]
-    control_held, control_text = _control(claim, table, found, floors)
+    control_held, control_complete, control_text = _control(claim, table, found, floors)
     k = len([c for c in held if c.key() not in (control_held or set())])
     m = len(distinct)
     outcomes = [outcome[c.key()] for c in distinct]
-    if k == m and control_held is None:
+    if k == m and not control_complete:
         verdict = "holds, control not run"
     elif k == m:
         verdict = "reproduced" if all(c.seeds() > 1 for c in distinct) else "holds, one seed"
     elif k > 0:
-        verdict = f"partly ({k}/{m})"
+        verdict = f"partly ({k}/{m})" + ("" if control_complete else ", control not run")
     elif "against" in outcomes:  # on one seed both ways: a single run's spread is unknown
         verdict = "not reproduced" if any(c.seeds() > 1 for c in distinct if outcome[c.key()] == "against") else "not reproduced, one seed"
     elif held:
@@ -325,7 +343,8 @@ def evaluate(claim: Claim, table: Table | None, floors: dict | None = None, code
     else:
         verdict = "inside the spread"
     controls = {r for c in claim.control for r in ([c] if isinstance(c, str) else c.values())}
-    rows = {x for c in found for x in (c.hi, c.lo) if x != "bound"} | controls
+    rows = {claim.row} if claim.kind == "order_groups" else {x for c in found for x in (c.hi, c.lo) if x != "bound"}  # order_groups: hi, lo are groups
+    rows |= controls
     stale = stale_rows(sorted(rows & set(table.rows())), table.row_commits, table.commits, code, owner(table.name), table.trained_at,
                        table.track)  # fmt: skip
     if stale:  # it can hold, never reproduce
@@ -343,32 +362,33 @@ def _shown(found: list, claim: Claim, outcome: dict) -> str:
     return "; ".join(f"{w}: {' ; '.join(t)}" if w else " ; ".join(t) for w, t in parts.items())
 
 
-def _control(claim: Claim, table: Table, own: list, floors: dict) -> tuple[set | None, str]:
+def _control(claim: Claim, table: Table, own: list, floors: dict) -> tuple[set | None, bool, str]:
     """(the keys of the cases of ``own`` (the claim's cases, in order) that a control row meets as well: it holds
     them, or its means satisfy the relation inside the bands or the floor (a level the control passes by 0.07 mm is
-    no evidence that it fails); None when no control row of the table has the cells to tell; the control's cell
-    text)."""
+    no evidence that it fails), in any of the groups whose cases repeat those numbers; None when no control row of
+    the table has the cells to tell; whether every control the claim names was evaluated; the control's cell
+    text, naming the controls the table lacks)."""
     if not claim.control:
-        return set(), f"none: {claim.control_why}"
-    subs = [c if isinstance(c, dict) else {claim.credited_row(): c} for c in claim.control]
-    present = [sub for sub in subs if set(sub.values()) <= set(table.rows())]
-    if not present:
-        return None, f"{_names(claim.control)}: not in the table"
-    held, texts, evaluated = set(), [], False
-    for sub in present:
+        return set(), True, f"none: {claim.control_why}"
+    held, texts, evaluated, complete = set(), [], False, True
+    for sub in (c if isinstance(c, dict) else {claim.credited_row(): c} for c in claim.control):
         control = _names([sub]) if len(sub) > 1 else next(iter(sub.values()))
-        theirs, missing = cases(claim, table, sub)
-        if missing:
-            texts.append(f"{control}: not run ({missing[0]})")
+        absent = [row for row in sub.values() if row not in table.rows()]
+        theirs, missing = cases(claim, table, sub) if not absent else ([], [])
+        if absent or missing:
+            complete = False
+            texts.append(f"{control}: not in the table" if absent else f"{control}: not run ({missing[0]})")
             continue
-        outcomes = {c.key(): (t.outcome(floor_of(floors, table.name, t.metric)), t.vhi.mean > t.vlo.mean)
-                    for c, t in zip(own, theirs) if t is not None}
-        holds = {k for k, (o, _) in outcomes.items() if o == "holds"}
-        on_means = {k for k, (o, ordered) in outcomes.items() if o in ("tie", "small") and ordered}
+        outcomes: dict = {}  # a case's key -> (outcome, ordered on the means) of the control in each of its groups
+        for c, t in zip(own, theirs):
+            if t is not None:
+                outcomes.setdefault(c.key(), []).append((t.outcome(floor_of(floors, table.name, t.metric)), t.vhi.mean > t.vlo.mean))
+        holds = {k for k, os in outcomes.items() if any(o == "holds" for o, _ in os)}
+        on_means = {k for k, os in outcomes.items() if k not in holds and any(o in ("tie", "small") and ordered for o, ordered in os)}
         held |= holds | on_means
         evaluated = True
         texts.append(f"{control} holds {len(holds)}/{len(outcomes)}" + (f", meets on its means {len(on_means)}" if on_means else ""))
-    return held if evaluated else None, "; ".join(texts)
+    return held if evaluated else None, complete, "; ".join(texts)
 
 
 def _names(controls) -> str:
@@ -473,8 +493,8 @@ def render(claims: list[Claim], reports: Path, code: dict | None = None) -> str:
               "Resolution floors (per table and metric: the median seeds' std of its multi-seed cells with a spread, "
               "what two seeds of one method typically differ by on that scene, measured from the committed CPU tables "
               "each time this file is generated; a table without such cells uses the metric's median over all of them; "
-              "in brackets the cells measured and the cells whose seeds gave identical values, deterministic rows that "
-              "a rerun repeats exactly): " + _floors_text(floors) + ".", "",
+              "in brackets the cells measured and the cells whose seeds agree to the printed digit, their std printed as "
+              "0: deterministic rows, or a spread under the last digit): " + _floors_text(floors) + ".", "",
               CODE_LINE + ", ".join(f"{k} {v}" for k, v in sorted(code.items())) + " (drapebench.staleness).", ""]  # fmt: skip
     if notes:
         lines += ["Notes:", *notes, ""]

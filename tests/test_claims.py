@@ -136,6 +136,74 @@ def test_cases_with_the_same_numbers_count_once(tmp_path):
     assert evaluate(ORDER, t).verdict == "partly (1/2)"
 
 
+
+def test_a_std_printed_as_zero_is_half_a_digit_wide(tmp_path):
+    """"0.013 ± 0.000 (n=3)" is a spread under 0.0005, not none: a one-digit difference is a tie, not a held case."""
+    assert parse_cell("0.013 ± 0.000 (n=3)").spread() == pytest.approx(0.0005) and parse_cell("12").spread() == 0.5
+    t = _table(tmp_path, {"hi": ["0.013 ± 0.000 (n=3)", "0.003 ± 0.000 (n=3)"], "lo": ["0.012 ± 0.000 (n=3)", "0.002 ± 0.000 (n=3)"]})
+    assert evaluate(ORDER, t).verdict == "inside the spread"
+    t = _table(tmp_path, {"hi": ["0.014 ± 0.000 (n=3)", "0.004 ± 0.000 (n=3)"], "lo": ["0.012 ± 0.000 (n=3)", "0.002 ± 0.000 (n=3)"]})
+    assert evaluate(ORDER, t).verdict == "reproduced"
+
+
+def test_a_bound_made_from_a_measured_value_keeps_its_band(tmp_path):
+    """A "within" bound (factor x the reference group's cell) and a level's bound_metric (bound + a cell) carry the
+    cell's spread: 14 against 1.5 x (10 ± 4) is a tie."""
+    within = Claim("w", "P", "b near a", "-", "within", table="t", metrics=("m",), row="r", reference="a", bound=1.5, control_why="test")
+    assert evaluate(within, _table(tmp_path, {"r": ["10 ± 4 (n=3)", "14 ± 0.1 (n=3)"]})).verdict == "inside the spread"
+    assert evaluate(within, _table(tmp_path, {"r": ["10 ± 0.1 (n=3)", "14 ± 0.1 (n=3)"]})).verdict == "reproduced"
+    level = Claim("l", "P", "m under c", "-", "level", table="t", metrics=("m",), row="r", bound=0.5, bound_metric="c",
+                  control_why="test")  # fmt: skip
+    t = _table(tmp_path, {"r": ["1.0 ± 0.1 (n=3)", "1.0 ± 0.1 (n=3)", "1.0 ± 0.5 (n=3)", "1.0 ± 0.5 (n=3)"]})
+    assert evaluate(level, t).verdict == "inside the spread"
+    t = _table(tmp_path, {"r": ["1.0 ± 0.1 (n=3)", "1.0 ± 0.1 (n=3)", "1.0 ± 0.05 (n=3)", "1.0 ± 0.05 (n=3)"]})
+    assert evaluate(level, t).verdict == "reproduced"
+
+
+def test_a_within_claim_never_compares_the_reference_group_with_itself(tmp_path):
+    within = Claim("w", "P", "b near a", "-", "within", table="t", metrics=("m",), row="r", reference="a", bound=1.5,
+                   groups=("a", "b"), control_why="test")  # fmt: skip
+    j = evaluate(within, _table(tmp_path, {"r": ["10 ± 0.1 (n=3)", "30 ± 0.1 (n=3)"]}))
+    assert j.verdict == "not reproduced" and not j.ours.startswith("a ")
+
+
+def test_a_copy_s_control_is_met_in_any_group_it_repeats_in(tmp_path):
+    """Two groups with the same numbers are one case; the control meeting it in either credits it to the scene,
+    whichever group comes first."""
+    level = Claim("l", "P", "r low", "-", "level", table="t", metrics=("m",), row="r", bound=0.2, control=("lbs",))
+    for lbs in (["0.1", "0.5"], ["0.5", "0.1"]):
+        j = evaluate(level, _table(tmp_path, {"r": ["0.05 ± 0.01 (n=3)", "0.05 ± 0.01 (n=3)"], "lbs": lbs}))
+        assert verdict_class(j.verdict) == "scene-determined" and j.control == "lbs holds 1/1", lbs
+
+
+def test_a_group_a_claim_names_that_the_table_lacks_is_not_run(tmp_path):
+    pairs = {g: [("hi", "lo")] for g in ("a", "b", "c")}
+    j = evaluate(Claim("d", "P", "hi above lo", "-", "order", table="t", metrics=("m",), greater=pairs, control_why="test"),
+                 _table(tmp_path, {"hi": ["5 ± 0.5 (n=3)", "6 ± 0.5 (n=3)"], "lo": ["1 ± 0.5 (n=3)", "2 ± 0.5 (n=3)"]}))  # fmt: skip
+    assert j.verdict.startswith("not run") and "hi on c m" in j.verdict
+
+
+def test_an_order_over_groups_reads_its_row_s_commit(tmp_path):
+    """order_groups' cases name groups, not rows: its credited row's provenance still decides staleness."""
+    head, parent = _git("rev-parse", "HEAD"), _git("rev-parse", "HEAD~1")
+    grows = Claim("g", "P", "b above a", "-", "order_groups", table="t", metrics=("m",), row="r", greater=[("b", "a")],
+                  control=("r0",))  # fmt: skip
+    rows = {"r": ["1 ± 0.1 (n=3)", "3 ± 0.1 (n=3)"], "r0": ["1 ± 0.1 (n=3)", "1 ± 0.1 (n=3)"]}
+    j = evaluate(grows, _table(tmp_path, rows, commits=[parent, head], mixed=f"r {parent[:7]}; r0 {head[:7]}"))
+    assert j.verdict == "stale: holds" and list(j.stale) == ["r"]
+
+
+def test_a_control_the_table_lacks_is_named_and_keeps_the_claim_from_reproducing(tmp_path):
+    level = Claim("l", "P", "r low", "-", "level", table="t", metrics=("m",), row="r", bound=0.2, control=("r_untrained", "lbs"))
+    t = _table(tmp_path, {"r": ["0.05 ± 0.01 (n=3)", "0.06 ± 0.01 (n=3)"], "lbs": ["0.5", "0.5"]})
+    j = evaluate(level, t)
+    assert j.verdict == "holds, control not run" and j.control == "r_untrained: not in the table; lbs holds 0/2"
+    t = _table(tmp_path, {"r": ["0.05 ± 0.01 (n=3)", "0.6 ± 0.01 (n=3)"], "lbs": ["0.5", "0.5"]})
+    assert evaluate(level, t).verdict == "partly (1/2), control not run"
+    assert evaluate(Claim("l", "P", "r low", "-", "level", table="t", metrics=("m",), row="r", bound=0.2, control=("lbs",)),
+                    t).verdict == "partly (1/2)"  # fmt: skip
+
+
 def test_a_row_from_another_commit_or_changed_code_makes_the_claim_stale(tmp_path):
     head, parent = _git("rev-parse", "HEAD"), _git("rev-parse", "HEAD~1")
     rows = {"hi": ["5 ± 0.5 (n=3)", "6 ± 0.5 (n=3)"], "lo": ["1 ± 0.5 (n=3)", "2 ± 0.5 (n=3)"]}
