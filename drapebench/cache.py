@@ -21,6 +21,7 @@ import hashlib
 import json
 import logging
 import os
+import shutil
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -110,13 +111,7 @@ def atomic_write(path: str | os.PathLike, mode: str = "wb", keep_suffix: bool = 
     temporary file is removed and ``path`` is left as it was.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    suffix = ".tmp" + (path.suffix if keep_suffix else "")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix, dir=path.parent)
-    os.close(fd)
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; give the final file normal permissions
+    tmp = _temporary_beside(path, ".tmp" + (path.suffix if keep_suffix else ""))
     try:
         if mode is None:
             yield Path(tmp)
@@ -132,13 +127,62 @@ def atomic_write(path: str | os.PathLike, mode: str = "wb", keep_suffix: bool = 
         raise
 
 
+def _temporary_beside(path: Path, suffix: str) -> Path:
+    """A new empty file beside ``path`` (its folder made), named ``.<name>.<random><suffix>``, with the permissions
+    a new file gets (mkstemp's are 0600)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix, dir=path.parent)
+    os.close(fd)
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o666 & ~umask)
+    return Path(tmp)
+
+
 @contextlib.contextmanager
 def atomic_write_set(paths) -> Iterator[list[Path]]:
     """Temporary paths, one beside each of ``paths``, for files that replace ``paths`` as a set: none is renamed into
     place until the block has written them all, so an exception while writing any (a failed plot) leaves every one of
-    ``paths`` as it was and removes the temporaries."""
-    with contextlib.ExitStack() as stack:
-        yield [stack.enter_context(atomic_write(p, mode=None)) for p in paths]
+    ``paths`` as it was and removes the temporaries; a rename that fails partway (a full disk) puts back the files
+    already replaced (each old file is linked aside first) and removes those that were new."""
+    paths = [Path(p) for p in paths]
+    temporaries: list[Path] = []
+    try:
+        temporaries += [_temporary_beside(p, ".tmp") for p in paths]
+        yield list(temporaries)
+        _replace_together(temporaries, paths)
+    finally:
+        for tmp in temporaries:
+            tmp.unlink(missing_ok=True)
+
+
+def _replace_together(temporaries: list[Path], paths: list[Path]) -> None:
+    """Rename each of ``temporaries`` onto its path of ``paths``; if one fails, undo those already done and raise."""
+    old = {}
+    try:
+        for p in paths:
+            if p.exists():
+                old[p] = _temporary_beside(p, ".old")
+                old[p].unlink()
+                try:
+                    os.link(p, old[p])  # the old file stays in place; the link keeps it if a later rename fails
+                except OSError:
+                    shutil.copy2(p, old[p])
+        done = []
+        try:
+            for tmp, p in zip(temporaries, paths):
+                os.replace(tmp, p)
+                done.append(p)
+        except BaseException:
+            for p in done:
+                if p in old:
+                    os.replace(old[p], p)
+                else:
+                    p.unlink(missing_ok=True)
+            raise
+    finally:
+        for saved in old.values():
+            saved.unlink(missing_ok=True)
 
 
 def write_json(path: str | os.PathLike, obj: Any) -> None:

@@ -25,7 +25,7 @@ import yaml
 from drapebench.cache import PROJECT_ROOT, atomic_write, atomic_write_set
 from drapebench.plugins import declared, known_impl
 from drapebench.results import SUMMARY_COLUMNS, legend, metric_catalogue, metric_decimals, metric_info, metric_label
-from drapebench.run_archive import converged_of
+from drapebench.run_archive import converged_of, portable_checkpoint
 from drapebench.table_file import write_csv
 from drapebench.table_specs import spec, specs
 from drapebench.train.convergence import converged_seconds
@@ -351,6 +351,7 @@ def mixed_models_note(df: pd.DataFrame) -> str:
     if "model_hash" not in df or "checkpoint" not in df:
         return ""
     known = df[df["model_hash"].notna() & df["checkpoint"].notna()]
+    known = known.assign(checkpoint=known["checkpoint"].map(portable_checkpoint))  # a run restored from the archive names it from cache/ on
     trainings = known.groupby(["method", "checkpoint"], sort=False)["model_hash"].agg(lambda h: list(dict.fromkeys(h)))
     mixed = trainings[trainings.map(len) > 1]
     if mixed.empty:

@@ -54,6 +54,33 @@ def test_a_failed_plot_leaves_the_tables_files_as_they_were(tmp_path, monkeypatc
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in before)  # no temporary left behind
 
 
+
+def test_a_rename_that_fails_partway_puts_the_set_back(tmp_path, monkeypatch):
+    """A full disk on the third rename of a table's set: the two files already replaced get their old bytes back, a
+    file that was new is removed, and no temporary or saved copy is left."""
+    import os
+
+    from drapebench.cache import atomic_write_set
+
+    paths = [tmp_path / n for n in ("t.md", "t.tex", "t.csv", "t_runtime.png")]
+    for p in paths[:3]:
+        p.write_text("old")
+    real, calls = os.replace, []
+
+    def full_disk(src, dst):
+        calls.append(dst)
+        if len(calls) == 3:
+            raise OSError(28, "No space left on device")
+        real(src, dst)
+
+    monkeypatch.setattr(os, "replace", full_disk)
+    with pytest.raises(OSError, match="No space"):
+        with atomic_write_set(paths[::-1]) as temporaries:  # the plot first: a new file among those replaced
+            for t in temporaries:
+                t.write_text("new")
+    assert {p.name: p.read_text() for p in paths if p.exists()} == {"t.md": "old", "t.tex": "old", "t.csv": "old"}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["t.csv", "t.md", "t.tex"]
+
 def test_the_provenance_names_the_runs_torch_threads(tmp_path):
     """runtime_vs_error's ms/frame depend on the threads each run drew with (``reproduce --jobs`` pins its share)."""
     import json
@@ -660,6 +687,15 @@ def test_a_model_whose_runs_read_two_trainings_of_it_is_named(tmp_path):
     assert mixed_models_note(df.assign(model_hash=["a" * 12, "a" * 12, None])) == ""
     assert mixed_models_note(df.drop(columns="model_hash")) == ""
 
+
+
+def test_two_trainings_are_named_when_one_run_came_from_the_archive():
+    """The archive names a checkpoint from cache/checkpoints/ on, a local run by its machine's path: one model."""
+    from drapebench.report import mixed_models_note
+
+    name = "cache/checkpoints/vae_96d358058bc9a0f5.pt"
+    df = pd.DataFrame({"method": ["vae", "vae"], "checkpoint": [name, f"/srv/me/drapebench/data/{name}"], "model_hash": ["a" * 12, "b" * 12]})
+    assert "vae (vae_96d358058bc9a0f5.pt): aaaaaaaaaaaa, bbbbbbbbbbbb" in mixed_models_note(df)
 
 def test_a_log_axis_labels_few_minor_ticks_where_they_would_crowd():
     """Over one decade and a half the minor ticks at 2, 3 and 5 are labelled, not 0.6, 0.7, 0.8 and 0.9 (which ran
