@@ -177,8 +177,12 @@ def _diff_from(base: str) -> bytes | None:
 
 
 def _bytes(path: Path) -> bytes:
-    """``path``'s bytes; empty when it went away after git listed it."""
+    """``path``'s bytes (a symlink to a folder, which git lists as one file: the path and bytes of each file under
+    it, sorted); empty when it went away after git listed it."""
     try:
+        if path.is_dir():
+            files = sorted(f for f in path.rglob("*") if f.is_file() and "__pycache__" not in f.parts)
+            return b"".join(f.relative_to(path).as_posix().encode() + b"\n" + f.read_bytes() for f in files)
         return path.read_bytes()
     except OSError:
         return b""
@@ -565,7 +569,13 @@ def main(argv=None) -> int:
             print(f"archive {args.archive}: {err}", file=sys.stderr)
             return 1
         print(f"archive {args.archive}: {restored} runs restored from it, {recorded} recorded into it")
-        if left := unplanned(args.archive):
+        from drapebench.results import CODE, untracked_code
+
+        left = unplanned(args.archive)
+        if left is None:
+            print(f"archive {args.archive}: the runs no table plans are not named while untracked files under "
+                  f"{', '.join(CODE)} may change what the sweeps plan (e.g. {untracked_code()[0]}): commit or remove them")
+        elif left:
             print(f"archive {args.archive}: {len(left)} runs that no table plans any longer (e.g. {left[0]}): no table reads "
                   "them; delete them")
     jobs = plan(names, root, args.quick)
@@ -613,12 +623,18 @@ def _archiving(archive: Path, root: Path):
     return runner
 
 
-def unplanned(archive: Path) -> list[Path]:
+def unplanned(archive: Path) -> list[Path] | None:
     """The run folders in ``archive`` (a run archive, laid out as the runs folder) that no table's sweeps plan any
-    longer (a sweep changed since they ran), sorted: no table reads them; delete them."""
+    longer, in full or ``--quick`` (a sweep changed since they ran), sorted: no table reads them; delete them. None
+    while :func:`drapebench.results.untracked_code` lists files: a scratch ``conf/method/x.yaml`` moves every later run
+    of a ``method=glob(*)`` sweep to another folder, so the plan is not the commit's and no run can be called
+    unplanned."""
+    from drapebench.results import untracked_code
     from drapebench.run_archive import STAMP
 
-    planned = {j.dir for j in plan(list(specs()), archive)}
+    if untracked_code():
+        return None
+    planned = {j.dir for quick in (False, True) for j in plan(list(specs()), archive, quick)}
     return sorted(d for d in (s.parent for s in archive.rglob(STAMP)) if d not in planned)
 
 

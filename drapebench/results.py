@@ -113,18 +113,24 @@ def headline(record: dict, names=("eps_e", "eps_a", "eps_c", "vertex_error_mm", 
 
 GENERATED = ("reports", "README.md")  # what `python -m drapebench.reproduce` writes into the tree: no run reads them
 CODE = ("conf", "methods", "drapebench", "run.py")  # what a run reads: an untracked file there is code it may run
+READ_IF_IGNORED = (".py", ".yaml", ".yml")  # an ignored file under CODE with these endings is still code a run may read
 
 
 def untracked_code(root: Path | None = None) -> list[str]:
-    """The untracked, not ignored files under :data:`CODE` (paths relative to ``root``, default the project's;
-    sorted): a run may read them (a new ``conf/method/x.yaml`` that a sweep's ``method=glob(*)`` picks up), so
-    they make its commit label dirty. Empty when git cannot list them."""
-    try:
-        done = subprocess.run(["git", "ls-files", "--others", "--exclude-standard", "-z", "--", *CODE], cwd=root or PROJECT_ROOT,
-                              capture_output=True, text=True, check=True)  # fmt: skip
-    except (OSError, subprocess.CalledProcessError):
-        return []
-    return sorted(p for p in done.stdout.split("\0") if p)
+    """The untracked files under :data:`CODE` (paths relative to ``root``, default the project's; sorted): those git
+    does not ignore, and ignored ones a run reads all the same (:data:`READ_IF_IGNORED`: Hydra's ``glob(*)`` sweeps an
+    ignored ``conf/method/x.local.yaml`` too): a run may read them (a new ``conf/method/x.yaml`` that a sweep's
+    ``method=glob(*)`` picks up), so they make its commit label dirty. Empty when git cannot list them."""
+    listed = {}
+    for exclude in ((), ("--exclude-standard",)):
+        try:
+            done = subprocess.run(["git", "ls-files", "--others", *exclude, "-z", "--", *CODE], cwd=root or PROJECT_ROOT,
+                                  capture_output=True, text=True, check=True)  # fmt: skip
+        except (OSError, subprocess.CalledProcessError):
+            return []
+        listed[exclude] = {p for p in done.stdout.split("\0") if p}
+    ignored = listed[()] - listed[("--exclude-standard",)]
+    return sorted(listed[("--exclude-standard",)] | {p for p in ignored if p.endswith(READ_IF_IGNORED)})
 
 
 def _head_commit() -> str:

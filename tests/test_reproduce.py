@@ -656,6 +656,32 @@ def test_an_untracked_config_where_runs_read_code_changes_the_label(tmp_path, mo
     assert code_against(head) not in (first, head)
 
 
+
+def test_an_edit_behind_an_untracked_symlink_changes_the_label(tmp_path, monkeypatch):
+    """git lists a symlink to a folder as one file: the files behind it are what the label hashes."""
+    import subprocess
+
+    from drapebench import results
+    from drapebench.reproduce import code_against
+
+    repo, outside = tmp_path / "repo", tmp_path / "ext_method"
+    git = lambda *a: subprocess.run(["git", "-C", str(repo), *a], check=True, capture_output=True, text=True)  # noqa: E731
+    repo.mkdir()
+    git("init", "-q")
+    (repo / "run.py").write_text("x = 1\n")
+    git("add", "-A")
+    git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", "c")
+    head = git("rev-parse", "HEAD").stdout.strip()
+    monkeypatch.setattr(reproduce, "PROJECT_ROOT", repo)
+    monkeypatch.setattr(results, "PROJECT_ROOT", repo)
+    outside.mkdir()
+    (outside / "method.py").write_text("SCALE = 1.0\n")
+    (repo / "methods").mkdir()
+    (repo / "methods" / "ext").symlink_to(outside, target_is_directory=True)
+    first = code_against(head)
+    (outside / "method.py").write_text("SCALE = 2.0\n")
+    assert first.startswith(head + "-dirty+") and code_against(head) not in (first, head)
+
 def test_a_run_that_raises_ends_and_does_not_hold_up_the_runs_waiting_for_it(tmp_path, monkeypatch):
     """Two workers; the second group waits for the first group's run, whose runner raises (a full disk, a failed
     start): the error is said, the run counts as failed, and the waiting group still runs (no hang)."""

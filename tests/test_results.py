@@ -304,3 +304,24 @@ def test_tables_written_by_a_regeneration_do_not_make_its_runs_dirty(tmp_path, m
     (tmp_path / "conf" / "method" / "scratch.yaml").unlink()
     (tmp_path / "code.py").write_text("x = 2\n")
     assert results._head_commit() == clean + "-dirty"
+
+
+def test_an_ignored_config_a_sweep_would_run_is_code(tmp_path, monkeypatch):
+    """Hydra's ``glob(*)`` sweeps an ignored ``conf/method/x.local.yaml`` too: it makes the label dirty; an ignored
+    compiled file does not."""
+    import subprocess
+
+    from drapebench import results
+
+    git = lambda *a: subprocess.run(["git", "-C", str(tmp_path), *a], check=True, capture_output=True)  # noqa: E731
+    git("init", "-q")
+    (tmp_path / ".gitignore").write_text("*.local.yaml\n__pycache__/\n")
+    (tmp_path / "run.py").write_text("x = 1\n")
+    git("add", "-A")
+    git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", "c")
+    monkeypatch.setattr(results, "PROJECT_ROOT", tmp_path)
+    (tmp_path / "conf" / "method" / "__pycache__").mkdir(parents=True)
+    (tmp_path / "conf" / "method" / "__pycache__" / "x.cpython-311.pyc").write_bytes(b"\0")
+    assert results.untracked_code() == [] and not results._head_commit().endswith("-dirty")
+    (tmp_path / "conf" / "method" / "scratch.local.yaml").write_text("name: scratch\n")
+    assert results.untracked_code() == ["conf/method/scratch.local.yaml"] and results._head_commit().endswith("-dirty")

@@ -152,6 +152,9 @@ def test_runs_that_no_table_plans_any_longer_are_named(tmp_path):
     for d in (kept, gone):
         d.mkdir(parents=True)
         (d / "reproduce.json").write_text("{}")
+    quick = plan(["baseline"], tmp_path, True)[0].dir  # a --quick run is planned too
+    quick.mkdir(parents=True)
+    (quick / "reproduce.json").write_text("{}")
     assert unplanned(tmp_path) == [gone]
     root = tmp_path / "runs"
     (root / "baseline" / "9" / "0_0123456789").mkdir(parents=True)  # an unplanned run in a runs folder is not recorded back
@@ -159,3 +162,18 @@ def test_runs_that_no_table_plans_any_longer_are_named(tmp_path):
         (root / "baseline" / "9" / "0_0123456789" / name).write_text("{}")
     assert sync(root, tmp_path / "archive", planned={kept.relative_to(tmp_path)}) == (0, 0)
     assert unplanned(PROJECT_ROOT / "reports" / "runs") == []
+
+
+def test_no_run_is_called_unplanned_while_untracked_code_may_change_the_plan(tmp_path, monkeypatch):
+    """A scratch conf/method/x.yaml moves every later run of a glob(*) sweep to another folder: the plan is not the
+    commit's, so no archived run is named for deletion, and reproduce says why."""
+    from drapebench import results
+    from drapebench.reproduce import plan, unplanned
+
+    gone = tmp_path / "baseline" / "9" / "0_0123456789"
+    gone.mkdir(parents=True)
+    (gone / "reproduce.json").write_text("{}")
+    assert unplanned(tmp_path) == [gone]
+    monkeypatch.setattr(results, "untracked_code", lambda root=None: ["conf/method/scratch.yaml"])
+    assert unplanned(tmp_path) is None
+    assert plan(["baseline"], tmp_path)  # planning itself is unaffected
