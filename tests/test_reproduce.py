@@ -630,22 +630,30 @@ def test_code_against_names_an_edit_of_the_tracked_code_only(monkeypatch):
     assert code_against("b" * 40).startswith("b" * 40 + "-dirty+") and code_against("c" * 40) == "c" * 40
 
 
-def test_an_untracked_config_where_runs_read_code_changes_the_label(tmp_path, monkeypatch):
-    """A new, uncommitted ``conf/method/x.yaml`` (which a sweep's ``glob(*)`` would run) is code: the label moves off
-    the commit, and changes with the file's content; an untracked file outside the code does not count."""
+def _project_of_one_commit(root: Path, monkeypatch) -> str:
+    """A git repository at ``root`` with one commit of a ``run.py``, made the project that labels are read from;
+    returns its commit."""
     import subprocess
 
     from drapebench import results
-    from drapebench.reproduce import code_against
 
-    git = lambda *a: subprocess.run(["git", "-C", str(tmp_path), *a], check=True, capture_output=True, text=True)  # noqa: E731
+    git = lambda *a: subprocess.run(["git", "-C", str(root), *a], check=True, capture_output=True, text=True)  # noqa: E731
+    root.mkdir(exist_ok=True)
     git("init", "-q")
-    (tmp_path / "run.py").write_text("x = 1\n")
+    (root / "run.py").write_text("x = 1\n")
     git("add", "-A")
     git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", "c")
-    head = git("rev-parse", "HEAD").stdout.strip()
-    monkeypatch.setattr(reproduce, "PROJECT_ROOT", tmp_path)
-    monkeypatch.setattr(results, "PROJECT_ROOT", tmp_path)
+    monkeypatch.setattr(reproduce, "PROJECT_ROOT", root)
+    monkeypatch.setattr(results, "PROJECT_ROOT", root)
+    return git("rev-parse", "HEAD").stdout.strip()
+
+
+def test_an_untracked_config_where_runs_read_code_changes_the_label(tmp_path, monkeypatch):
+    """A new, uncommitted ``conf/method/x.yaml`` (which a sweep's ``glob(*)`` would run) is code: the label moves off
+    the commit, and changes with the file's content; an untracked file outside the code does not count."""
+    from drapebench.reproduce import code_against
+
+    head = _project_of_one_commit(tmp_path, monkeypatch)
     (tmp_path / "scratch.txt").write_text("notes\n")
     assert code_against(head) == head
     (tmp_path / "conf" / "method").mkdir(parents=True)
@@ -659,21 +667,10 @@ def test_an_untracked_config_where_runs_read_code_changes_the_label(tmp_path, mo
 
 def test_an_edit_behind_an_untracked_symlink_changes_the_label(tmp_path, monkeypatch):
     """git lists a symlink to a folder as one file: the files behind it are what the label hashes."""
-    import subprocess
-
-    from drapebench import results
     from drapebench.reproduce import code_against
 
     repo, outside = tmp_path / "repo", tmp_path / "ext_method"
-    git = lambda *a: subprocess.run(["git", "-C", str(repo), *a], check=True, capture_output=True, text=True)  # noqa: E731
-    repo.mkdir()
-    git("init", "-q")
-    (repo / "run.py").write_text("x = 1\n")
-    git("add", "-A")
-    git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", "c")
-    head = git("rev-parse", "HEAD").stdout.strip()
-    monkeypatch.setattr(reproduce, "PROJECT_ROOT", repo)
-    monkeypatch.setattr(results, "PROJECT_ROOT", repo)
+    head = _project_of_one_commit(repo, monkeypatch)
     outside.mkdir()
     (outside / "method.py").write_text("SCALE = 1.0\n")
     (repo / "methods").mkdir()
