@@ -157,9 +157,9 @@ def resolution_floors(tables: dict) -> dict:
     the median seeds' std of its multi-seed cells there that have a spread (what two seeds of one method typically
     differ by on that scene), with the number of such cells and of cells whose seeds agree to the printed digit
     (their std prints as 0: deterministic rows, or a spread under the last digit). Untrained rows (``<m>_untrained``)
-    are left out: their spread is that of random initialisations, not what a measurement can resolve. The metric's own entry pools every
-    CPU table of ``tables`` (name -> :class:`Table`), for a table without multi-seed cells of it; a metric with none is
-    absent (floor 0)."""
+    are left out: their spread is that of random initialisations, not what a measurement can resolve. The metric's
+    own entry pools every CPU table of ``tables`` (name -> :class:`Table`), for a table without multi-seed cells of
+    it; a metric with none is absent (floor 0)."""
     spreads: dict = {}
     for name, t in tables.items():
         if name.endswith("_gpu"):

@@ -121,16 +121,16 @@ def untracked_code(root: Path | None = None) -> list[str]:
     does not ignore, and ignored ones a run reads all the same (:data:`READ_IF_IGNORED`: Hydra's ``glob(*)`` sweeps an
     ignored ``conf/method/x.local.yaml`` too): a run may read them (a new ``conf/method/x.yaml`` that a sweep's
     ``method=glob(*)`` picks up), so they make its commit label dirty. Empty when git cannot list them."""
-    listed = {}
-    for exclude in ((), ("--exclude-standard",)):
-        try:
-            done = subprocess.run(["git", "ls-files", "--others", *exclude, "-z", "--", *CODE], cwd=root or PROJECT_ROOT,
-                                  capture_output=True, text=True, check=True)  # fmt: skip
-        except (OSError, subprocess.CalledProcessError):
-            return []
-        listed[exclude] = {p for p in done.stdout.split("\0") if p}
-    ignored = listed[()] - listed[("--exclude-standard",)]
-    return sorted(listed[("--exclude-standard",)] | {p for p in ignored if p.endswith(READ_IF_IGNORED)})
+    def others(*flags) -> set:
+        done = subprocess.run(["git", "ls-files", "--others", *flags, "-z", "--", *CODE], cwd=root or PROJECT_ROOT,
+                              capture_output=True, text=True, check=True)  # fmt: skip
+        return {p for p in done.stdout.split("\0") if p}
+
+    try:
+        every, not_ignored = others(), others("--exclude-standard")
+    except (OSError, subprocess.CalledProcessError):
+        return []
+    return sorted(not_ignored | {p for p in every - not_ignored if p.endswith(READ_IF_IGNORED)})
 
 
 def _head_commit() -> str:
