@@ -43,11 +43,16 @@ class Claim:
 
     def __post_init__(self):
         """A claim that cannot fail is refused: a "level" or "within" needs a finite ``bound`` (and "within" its
-        ``reference`` group); a ValueError names the claim."""
+        ``reference`` group), and each of ``groups`` its pairs in a ``greater`` dict; a ValueError names the claim."""
         if self.kind in ("level", "within") and not abs(self.bound) < float("inf"):
             raise ValueError(f"claim {self.id}: a {self.kind!r} claim needs a finite bound= (without one every value holds)")
         if self.kind == "within" and not self.reference:
             raise ValueError(f"claim {self.id}: a 'within' claim needs reference= (the group the others are compared with)")
+        if self.groups and isinstance(self.greater, dict) and "*" not in self.greater:
+            unpaired = [g for g in self.groups if g not in self.greater]
+            if unpaired:  # a group without pairs would be tested on nothing and vanish from the verdict
+                raise ValueError(f"claim {self.id}: groups {', '.join(unpaired)} have no pairs in greater= (give them pairs, "
+                                 "or a '*' entry for every group)")
 
     def credited_row(self) -> str:
         """The row the claim credits: ``credited``, ``row``, or the lower row that every ``greater`` pair names."""

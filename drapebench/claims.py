@@ -129,7 +129,8 @@ VERDICTS = ("reproduced", "holds, one seed", "holds, control not run", "partly",
             "too small to tell", "not reproduced, one seed", "not reproduced", "stale", "not run", "not testable here")  # fmt: skip
 RULES = (
     "A claim is tested case by case (a group x metric x pair of rows; cases with the same numbers, a quantity that "
-    "does not depend on the group, count once). A case **holds** when its relation holds on the means, the two bands "
+    "does not depend on the group, count once where their controls' numbers repeat too). A case **holds** when its "
+    "relation holds on the means, the two bands "
     "mean ± std over seeds (at least ± half the last printed digit) do not overlap (a level: the band stays under the "
     "bound, itself a band where it scales or adds a measured value) and the difference is at least "
     "the metric's resolution floor (below); a case whose bands overlap is a **tie**, one whose difference is under the "
@@ -226,8 +227,9 @@ def _groups(claim: Claim, table: Table) -> list:
     (a group compared with itself always holds)."""
     if claim.groups:
         groups = list(claim.groups)
-    elif isinstance(claim.greater, dict) and "*" not in claim.greater:
-        groups = [g for g in table.groups if g in claim.greater] + [g for g in claim.greater if g not in table.groups]
+    elif isinstance(claim.greater, dict):
+        named = [g for g in claim.greater if g != "*"]
+        groups = [g for g in table.groups if "*" in claim.greater or g in named] + [g for g in named if g not in table.groups]
     else:
         groups = table.groups
     return [g for g in groups if g != claim.reference] if claim.kind == "within" else groups
@@ -285,7 +287,8 @@ def _case_text(c: Case, claim: Claim, verdict: str) -> str:
     if claim.kind == "order_groups":
         return f"{c.lo} {c.vlo.text()} {'<' if c.vhi.mean > c.vlo.mean else '≥'} {c.hi} {c.vhi.text()}{mark}"
     if c.hi == "bound":
-        how = f" ({claim.bound:g} x {claim.reference})" if claim.kind == "within" else f" ({claim.bound:g} + {claim.bound_metric})" if claim.bound_metric else ""
+        plus = f"{claim.bound:g} + " if claim.bound else ""
+        how = f" ({claim.bound:g} x {claim.reference})" if claim.kind == "within" else f" ({plus}{claim.bound_metric})" if claim.bound_metric else ""
         bound = f"{c.vhi.text()}{how}"
         return f"{c.where} {c.vlo.text()} {'≤' if c.vlo.mean <= c.vhi.mean else '>'} {bound}{mark}".strip()
     return f"{c.hi} {c.vhi.text()} {'>' if c.vhi.mean > c.vlo.mean else '≤'} {c.lo} {c.vlo.text()}{mark}"
@@ -318,33 +321,36 @@ def evaluate(claim: Claim, table: Table | None, floors: dict | None = None, code
         return Judgement("–", f"not run ({', '.join(dict.fromkeys(missing))})")
     if not found:
         return Judgement("–", "not run (the table has none of the claim's groups)")
-    distinct = list({c.key(): c for c in found}.values())
-    outcome = {c.key(): c.outcome(floor_of(floors, table.name, c.metric)) for c in distinct}
-    shown = _shown(found, claim, outcome)
+    controls = _control_cases(claim, table)
+    # a copy (a case that repeats another's numbers) counts once, and only where its controls' cells repeat too
+    keys = [(c.key(), *(None if theirs is None or theirs[i] is None else theirs[i].key() for _, theirs, _ in controls))
+            for i, c in enumerate(found)]  # fmt: skip
+    distinct = dict(zip(keys, found))
+    outcome = {k: c.outcome(floor_of(floors, table.name, c.metric)) for k, c in distinct.items()}
+    shown = _shown(found, claim, [outcome[k] for k in keys])
     if len(distinct) < len(found):
         shown += f" ({len(found)} cases, {len(distinct)} distinct: the others repeat the same numbers)"
-    held = [c for c in distinct if outcome[c.key()] == "holds"]
-    control_held, control_complete, control_text = _control(claim, table, found, floors)
-    k = len([c for c in held if c.key() not in (control_held or set())])
+    held = [k for k in distinct if outcome[k] == "holds"]
+    control_held, control_complete, control_text = _control(claim, controls, keys, floors, table.name)
+    k = len([x for x in held if x not in (control_held or set())])
     m = len(distinct)
-    outcomes = [outcome[c.key()] for c in distinct]
+    outcomes = list(outcome.values())
     if k == m and not control_complete:
         verdict = "holds, control not run"
     elif k == m:
-        verdict = "reproduced" if all(c.seeds() > 1 for c in distinct) else "holds, one seed"
+        verdict = "reproduced" if all(c.seeds() > 1 for c in distinct.values()) else "holds, one seed"
     elif k > 0:
         verdict = f"partly ({k}/{m})" + ("" if control_complete else ", control not run")
     elif "against" in outcomes:  # on one seed both ways: a single run's spread is unknown
-        verdict = "not reproduced" if any(c.seeds() > 1 for c in distinct if outcome[c.key()] == "against") else "not reproduced, one seed"
+        verdict = "not reproduced" if any(c.seeds() > 1 for x, c in distinct.items() if outcome[x] == "against") else "not reproduced, one seed"
     elif held:
         verdict = f"scene-determined (the control meets {len(held)}/{m} as well)"
     elif all(o == "small" for o in outcomes):
         verdict = "too small to tell"
     else:
         verdict = "inside the spread"
-    controls = {r for c in claim.control for r in ([c] if isinstance(c, str) else c.values())}
     rows = {claim.row} if claim.kind == "order_groups" else {x for c in found for x in (c.hi, c.lo) if x != "bound"}  # order_groups: hi, lo are groups
-    rows |= controls
+    rows |= {r for c in claim.control for r in ([c] if isinstance(c, str) else c.values())}
     stale = stale_rows(sorted(rows & set(table.rows())), table.row_commits, table.commits, code, owner(table.name), table.trained_at,
                        table.track)  # fmt: skip
     if stale:  # it can hold, never reproduce
@@ -354,37 +360,49 @@ def evaluate(claim: Claim, table: Table | None, floors: dict | None = None, code
     return Judgement(shown, verdict, control_text, stale)
 
 
-def _shown(found: list, claim: Claim, outcome: dict) -> str:
+def _shown(found: list, claim: Claim, outcomes: list) -> str:
     parts: dict = {}
-    for c in found:
+    for c, outcome in zip(found, outcomes):
         head = "" if claim.kind == "order_groups" or c.hi == "bound" else c.where
-        parts.setdefault(c.where if claim.kind == "order_groups" else head, []).append(_case_text(c, claim, outcome[c.key()]))
+        parts.setdefault(c.where if claim.kind == "order_groups" else head, []).append(_case_text(c, claim, outcome))
     return "; ".join(f"{w}: {' ; '.join(t)}" if w else " ; ".join(t) for w, t in parts.items())
 
 
-def _control(claim: Claim, table: Table, own: list, floors: dict) -> tuple[set | None, bool, str]:
-    """(the keys of the cases of ``own`` (the claim's cases, in order) that a control row meets as well: it holds
-    them, or its means satisfy the relation inside the bands or the floor (a level the control passes by 0.07 mm is
-    no evidence that it fails), in any of the groups whose cases repeat those numbers; None when no control row of
-    the table has the cells to tell; whether every control the claim names was evaluated; the control's cell
-    text, naming the controls the table lacks)."""
-    if not claim.control:
-        return set(), True, f"none: {claim.control_why}"
-    held, texts, evaluated, complete = set(), [], False, True
+def _control_cases(claim: Claim, table: Table) -> list[tuple[str, list | None, str | None]]:
+    """[(a control's name, its cases aligned with the claim's (:func:`cases` with its rows in place of the claim's),
+    or None with why it cannot be compared: absent from the table, or missing a cell)] for each control the claim
+    names."""
+    out = []
     for sub in (c if isinstance(c, dict) else {claim.credited_row(): c} for c in claim.control):
         control = _names([sub]) if len(sub) > 1 else next(iter(sub.values()))
         absent = [row for row in sub.values() if row not in table.rows()]
         theirs, missing = cases(claim, table, sub) if not absent else ([], [])
-        if absent or missing:
-            complete = False
-            texts.append(f"{control}: not in the table" if absent else f"{control}: not run ({missing[0]})")
-            continue
-        outcomes: dict = {}  # a case's key -> (outcome, ordered on the means) of the control in each of its groups
-        for c, t in zip(own, theirs):
+        why = f"{control}: not in the table" if absent else f"{control}: not run ({missing[0]})" if missing else None
+        out.append((control, None if why else theirs, why))
+    return out
+
+
+def _control(claim: Claim, controls: list, keys: list, floors: dict, table_name: str) -> tuple[set | None, bool, str]:
+    """(the ``keys`` (one per case of the claim, in order; a copy shares its key) that a control meets as well: it
+    holds them, or its means satisfy the relation inside the bands or the floor (a level the control passes by 0.07
+    mm is no evidence that it fails; a mean at a level's bound meets it); None when no control of ``controls``
+    (:func:`_control_cases`) has the cells to tell; whether every control the claim names was evaluated on at least
+    one case; the control's cell text, naming the controls the table lacks)."""
+    if not claim.control:
+        return set(), True, f"none: {claim.control_why}"
+    held, texts, evaluated, complete = set(), [], False, True
+    for control, theirs, why in controls:
+        outcomes: dict = {}  # a case's key -> (outcome, met on the means) of the control in each group it repeats in
+        for key, t in zip(keys, theirs or []):
             if t is not None:
-                outcomes.setdefault(c.key(), []).append((t.outcome(floor_of(floors, table.name, t.metric)), t.vhi.mean > t.vlo.mean))
+                on_means = t.vhi.mean >= t.vlo.mean if t.hi == "bound" else t.vhi.mean > t.vlo.mean
+                outcomes.setdefault(key, []).append((t.outcome(floor_of(floors, table_name, t.metric)), on_means))
+        if why or not outcomes:  # absent, missing a cell, or a side of every pair the claim compares
+            complete = False
+            texts.append(why or f"{control}: no case to compare (it is a side of each of the claim's pairs)")
+            continue
         holds = {k for k, os in outcomes.items() if any(o == "holds" for o, _ in os)}
-        on_means = {k for k, os in outcomes.items() if k not in holds and any(o in ("tie", "small") and ordered for o, ordered in os)}
+        on_means = {k for k, os in outcomes.items() if k not in holds and any(o in ("tie", "small") and met for o, met in os)}
         held |= holds | on_means
         evaluated = True
         texts.append(f"{control} holds {len(holds)}/{len(outcomes)}" + (f", meets on its means {len(on_means)}" if on_means else ""))

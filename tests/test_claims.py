@@ -167,13 +167,41 @@ def test_a_within_claim_never_compares_the_reference_group_with_itself(tmp_path)
     assert j.verdict == "not reproduced" and not j.ours.startswith("a ")
 
 
-def test_a_copy_s_control_is_met_in_any_group_it_repeats_in(tmp_path):
-    """Two groups with the same numbers are one case; the control meeting it in either credits it to the scene,
-    whichever group comes first."""
+def test_a_copy_counts_once_only_where_its_control_repeats_too(tmp_path):
+    """Two groups with the same numbers are one case when the control's cells repeat as well (met in either, it is
+    credited to the scene, whichever group comes first); where the control differs, the numbers are a coincidence
+    (0.000 collisions on two garments) and each group is a case of its own."""
     level = Claim("l", "P", "r low", "-", "level", table="t", metrics=("m",), row="r", bound=0.2, control=("lbs",))
+    r = ["0.05 ± 0.01 (n=3)", "0.05 ± 0.01 (n=3)"]
+    j = evaluate(level, _table(tmp_path, {"r": r, "lbs": ["0.1", "0.1"]}))
+    assert verdict_class(j.verdict) == "scene-determined" and j.control == "lbs holds 1/1" and "2 cases, 1 distinct" in j.ours
     for lbs in (["0.1", "0.5"], ["0.5", "0.1"]):
-        j = evaluate(level, _table(tmp_path, {"r": ["0.05 ± 0.01 (n=3)", "0.05 ± 0.01 (n=3)"], "lbs": lbs}))
-        assert verdict_class(j.verdict) == "scene-determined" and j.control == "lbs holds 1/1", lbs
+        j = evaluate(level, _table(tmp_path, {"r": r, "lbs": lbs}))
+        assert j.verdict == "partly (1/2)" and j.control == "lbs holds 1/2", lbs
+
+
+def test_a_control_at_a_level_s_bound_meets_it(tmp_path):
+    """"At most 0.2": a control at 0.200 meets it on its means, as one at 0.199 does."""
+    level = Claim("l", "P", "r low", "-", "level", table="t", metrics=("m",), row="r", bound=0.2, groups=("a",), control=("lbs",))
+    for lbs in ("0.200 ± 0.010 (n=3)", "0.199 ± 0.010 (n=3)"):
+        j = evaluate(level, _table(tmp_path, {"r": ["0.050 ± 0.010 (n=3)", "–"], "lbs": [lbs, "–"]}))
+        assert verdict_class(j.verdict) == "scene-determined", lbs
+    j = evaluate(level, _table(tmp_path, {"r": ["0.050 ± 0.010 (n=3)", "–"], "lbs": ["0.300 ± 0.010 (n=3)", "–"]}))
+    assert j.verdict == "reproduced"
+
+
+def test_a_control_that_is_a_side_of_every_pair_is_not_run(tmp_path):
+    """A control that stands in for the credited row on every pair compares nothing: the claim cannot reproduce."""
+    claim = Claim("c", "P", "a above b", "-", "order", table="t", metrics=("m",), greater=[("a", "b")], control=("a",))
+    j = evaluate(claim, _table(tmp_path, {"a": ["5 ± 0.1 (n=3)", "6 ± 0.1 (n=3)"], "b": ["1 ± 0.1 (n=3)", "2 ± 0.1 (n=3)"]}))
+    assert j.verdict == "holds, control not run" and "a: no case to compare" in j.control
+
+
+def test_a_bound_metric_without_an_offset_reads_as_the_metric(tmp_path):
+    level = Claim("l", "P", "m under c", "-", "level", table="t", metrics=("m",), row="r", bound=0.0, bound_metric="c",
+                  control_why="test")  # fmt: skip
+    j = evaluate(level, _table(tmp_path, {"r": ["1.0 ± 0.1 (n=3)", "1.0 ± 0.1 (n=3)", "2.0 ± 0.1 (n=3)", "2.0 ± 0.1 (n=3)"]}))
+    assert j.verdict == "reproduced" and "(c)" in j.ours and "0 + c" not in j.ours
 
 
 def test_a_group_a_claim_names_that_the_table_lacks_is_not_run(tmp_path):
@@ -181,6 +209,16 @@ def test_a_group_a_claim_names_that_the_table_lacks_is_not_run(tmp_path):
     j = evaluate(Claim("d", "P", "hi above lo", "-", "order", table="t", metrics=("m",), greater=pairs, control_why="test"),
                  _table(tmp_path, {"hi": ["5 ± 0.5 (n=3)", "6 ± 0.5 (n=3)"], "lo": ["1 ± 0.5 (n=3)", "2 ± 0.5 (n=3)"]}))  # fmt: skip
     assert j.verdict.startswith("not run") and "hi on c m" in j.verdict
+    star = {"*": [("hi", "lo")], "c": [("hi", "lo")]}  # every group, and c named besides
+    j = evaluate(Claim("s", "P", "hi above lo", "-", "order", table="t", metrics=("m",), greater=star, control_why="test"),
+                 _table(tmp_path, {"hi": ["5 ± 0.5 (n=3)", "6 ± 0.5 (n=3)"], "lo": ["1 ± 0.5 (n=3)", "2 ± 0.5 (n=3)"]}))  # fmt: skip
+    assert j.verdict.startswith("not run") and "hi on c m" in j.verdict
+
+
+def test_a_group_without_pairs_is_refused():
+    with pytest.raises(ValueError, match="groups b have no pairs"):
+        Claim("d", "P", "hi above lo", "-", "order", table="t", metrics=("m",), groups=("a", "b"), greater={"a": [("hi", "lo")]},
+              control_why="test")  # fmt: skip
 
 
 def test_an_order_over_groups_reads_its_row_s_commit(tmp_path):
