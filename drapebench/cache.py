@@ -148,7 +148,8 @@ def atomic_write_set(paths) -> Iterator[list[Path]]:
     paths = [Path(p) for p in paths]
     temporaries: list[Path] = []
     try:
-        temporaries += [_temporary_beside(p, ".tmp") for p in paths]
+        for p in paths:  # one at a time: those made before a failing one are removed too
+            temporaries.append(_temporary_beside(p, ".tmp"))
         yield list(temporaries)
         _replace_together(temporaries, paths)
     finally:

@@ -569,12 +569,12 @@ def main(argv=None) -> int:
             print(f"archive {args.archive}: {err}", file=sys.stderr)
             return 1
         print(f"archive {args.archive}: {restored} runs restored from it, {recorded} recorded into it")
-        from drapebench.results import CODE, untracked_code
+        from drapebench.results import CODE, uncommitted_code
 
         left = unplanned(args.archive)
         if left is None:
-            print(f"archive {args.archive}: the runs no table plans are not named while untracked files under "
-                  f"{', '.join(CODE)} may change what the sweeps plan (e.g. {untracked_code()[0]}): commit or remove them")
+            print(f"archive {args.archive}: the runs no table plans are not named while uncommitted files under "
+                  f"{', '.join(CODE)} may change what the sweeps plan (e.g. {uncommitted_code()[0]}): commit or remove them")
         elif left:
             print(f"archive {args.archive}: {len(left)} runs that no table plans any longer (e.g. {left[0]}): no table reads "
                   "them; delete them")
@@ -626,13 +626,13 @@ def _archiving(archive: Path, root: Path):
 def unplanned(archive: Path) -> list[Path] | None:
     """The run folders in ``archive`` (a run archive, laid out as the runs folder) that no table's sweeps plan any
     longer, in full or ``--quick`` (a sweep changed since they ran), sorted: no table reads them; delete them. None
-    while :func:`drapebench.results.untracked_code` lists files: a scratch ``conf/method/x.yaml`` moves every later run
-    of a ``method=glob(*)`` sweep to another folder, so the plan is not the commit's and no run can be called
-    unplanned."""
-    from drapebench.results import untracked_code
+    while :func:`drapebench.results.uncommitted_code` lists files: a scratch ``conf/method/x.yaml`` moves every later
+    run of a ``method=glob(*)`` sweep to another folder, and an edited experiment reorders its runs, so the plan is not
+    the commit's and no run can be called unplanned."""
+    from drapebench.results import uncommitted_code
     from drapebench.run_archive import STAMP
 
-    if untracked_code():
+    if uncommitted_code():
         return None
     planned = {j.dir for quick in (False, True) for j in plan(list(specs()), archive, quick)}
     return sorted(d for d in (s.parent for s in archive.rglob(STAMP)) if d not in planned)

@@ -116,6 +116,17 @@ CODE = ("conf", "methods", "drapebench", "run.py")  # what a run reads: an untra
 READ_IF_IGNORED = (".py", ".yaml", ".yml")  # an ignored file under CODE with these endings is still code a run may read
 
 
+def uncommitted_code(root: Path | None = None) -> list[str]:
+    """The files under :data:`CODE` that differ from the commit (paths relative to ``root``, default the project's;
+    sorted): tracked files with changes, and :func:`untracked_code`. Empty when git cannot list them."""
+    try:
+        done = subprocess.run(["git", "diff", "HEAD", "--name-only", "-z", "--", *CODE], cwd=root or PROJECT_ROOT,
+                              capture_output=True, text=True, check=True)  # fmt: skip
+    except (OSError, subprocess.CalledProcessError):
+        return untracked_code(root)
+    return sorted({p for p in done.stdout.split("\0") if p} | set(untracked_code(root)))
+
+
 def untracked_code(root: Path | None = None) -> list[str]:
     """The untracked files under :data:`CODE` (paths relative to ``root``, default the project's; sorted): those git
     does not ignore, and ignored ones a run reads all the same (:data:`READ_IF_IGNORED`: Hydra's ``glob(*)`` sweeps an

@@ -81,6 +81,17 @@ def test_a_rename_that_fails_partway_puts_the_set_back(tmp_path, monkeypatch):
     assert {p.name: p.read_text() for p in paths if p.exists()} == {"t.md": "old", "t.tex": "old", "t.csv": "old"}
     assert sorted(p.name for p in tmp_path.iterdir()) == ["t.csv", "t.md", "t.tex"]
 
+
+def test_a_set_that_cannot_be_begun_leaves_no_temporary(tmp_path):
+    """The second path's folder is a file: its temporary cannot be made, and the first one's is removed."""
+    from drapebench.cache import atomic_write_set
+
+    (tmp_path / "afile").write_text("x")
+    with pytest.raises(OSError):
+        with atomic_write_set([tmp_path / "t.md", tmp_path / "afile" / "t.png"]):
+            pass
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]
+
 def test_the_provenance_names_the_runs_torch_threads(tmp_path):
     """runtime_vs_error's ms/frame depend on the threads each run drew with (``reproduce --jobs`` pins its share)."""
     import json

@@ -301,9 +301,15 @@ def test_tables_written_by_a_regeneration_do_not_make_its_runs_dirty(tmp_path, m
     (tmp_path / "conf" / "method").mkdir(parents=True)
     (tmp_path / "conf" / "method" / "scratch.yaml").write_text("name: scratch\n")  # one a sweep's glob(*) would run
     assert results._head_commit() == clean + "-dirty" and results.untracked_code() == ["conf/method/scratch.yaml"]
+    assert results.uncommitted_code() == ["conf/method/scratch.yaml"]
     (tmp_path / "conf" / "method" / "scratch.yaml").unlink()
     (tmp_path / "code.py").write_text("x = 2\n")
-    assert results._head_commit() == clean + "-dirty"
+    assert results._head_commit() == clean + "-dirty" and results.uncommitted_code() == []  # not under CODE
+    (tmp_path / "run.py").write_text("y = 1\n")
+    git("add", "run.py")
+    git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", "run.py")
+    (tmp_path / "run.py").write_text("y = 2\n")  # a tracked file under CODE, edited
+    assert results.uncommitted_code() == ["run.py"]
 
 
 def test_an_ignored_config_a_sweep_would_run_is_code(tmp_path, monkeypatch):

@@ -141,11 +141,14 @@ def test_a_run_made_again_at_the_same_commit_with_another_result_is_named_not_re
     assert "delete the stale copy" in capsys.readouterr().err
 
 
-def test_runs_that_no_table_plans_any_longer_are_named(tmp_path):
+def test_runs_that_no_table_plans_any_longer_are_named(tmp_path, monkeypatch):
     """A sweep that changed leaves its old runs in the archive, which no table reads: they are named (and the
     committed archive holds none)."""
+    from drapebench import results
     from drapebench.cache import PROJECT_ROOT
     from drapebench.reproduce import plan, unplanned
+
+    monkeypatch.setattr(results, "uncommitted_code", lambda root=None: [])  # the plan is the commit's
 
     kept = plan(["baseline"], tmp_path)[0].dir
     gone = tmp_path / "baseline" / "9" / "0_0123456789"
@@ -164,16 +167,18 @@ def test_runs_that_no_table_plans_any_longer_are_named(tmp_path):
     assert unplanned(PROJECT_ROOT / "reports" / "runs") == []
 
 
-def test_no_run_is_called_unplanned_while_untracked_code_may_change_the_plan(tmp_path, monkeypatch):
-    """A scratch conf/method/x.yaml moves every later run of a glob(*) sweep to another folder: the plan is not the
-    commit's, so no archived run is named for deletion, and reproduce says why."""
+def test_no_run_is_called_unplanned_while_uncommitted_code_may_change_the_plan(tmp_path, monkeypatch):
+    """A scratch conf/method/x.yaml moves every later run of a glob(*) sweep to another folder, and an edited
+    experiment reorders its runs: the plan is not the commit's, so no archived run is named for deletion."""
     from drapebench import results
     from drapebench.reproduce import plan, unplanned
 
     gone = tmp_path / "baseline" / "9" / "0_0123456789"
     gone.mkdir(parents=True)
     (gone / "reproduce.json").write_text("{}")
+    monkeypatch.setattr(results, "uncommitted_code", lambda root=None: [])
     assert unplanned(tmp_path) == [gone]
-    monkeypatch.setattr(results, "untracked_code", lambda root=None: ["conf/method/scratch.yaml"])
-    assert unplanned(tmp_path) is None
+    for scratch in ("conf/method/scratch.yaml", "conf/experiment/baseline.yaml"):
+        monkeypatch.setattr(results, "uncommitted_code", lambda root=None, s=scratch: [s])
+        assert unplanned(tmp_path) is None
     assert plan(["baseline"], tmp_path)  # planning itself is unaffected
