@@ -18,6 +18,7 @@ import dataclasses
 import logging
 import math
 import time
+import typing
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping
@@ -27,7 +28,7 @@ import torch
 
 from drapebench.cache import cache_dir
 from drapebench.errors import TrainingDiverged
-from drapebench.keys import check_known
+from drapebench.keys import check_known, check_type
 from drapebench.progress import progress, progress_enabled
 from drapebench.results import git_commit
 from drapebench.schema import TrainConf
@@ -91,15 +92,39 @@ class TrainResult:
     evaluations: list[dict] = field(default_factory=list)
 
 
+# key: (whether a given value (not null) is in range, the range in words, an example of a value in range)
+_RANGES: dict[str, tuple[Callable[[float], bool], str, str]] = {
+    "seed": (lambda v: v >= 0, ">= 0 (it seeds numpy's generator)", "0"),
+    "epochs": (lambda v: v >= 0, ">= 0 (0: no step, the untrained model)", "4"),
+    "steps": (lambda v: v >= 0, ">= 0 (0: no step, the untrained model), or null to count epochs", "3300"),
+    "batch_size": (lambda v: v >= 1, ">= 1", "8"),
+    "lr": (lambda v: math.isfinite(v) and v > 0, "a finite rate > 0", "1e-4"),
+    "lr_after": (lambda v: math.isfinite(v) and v >= 0, "a finite rate >= 0, or null to keep lr", "1e-4"),
+    "lr_switch_epoch": (lambda v: v >= 0, ">= 0, or null to keep lr throughout", "8"),
+    "lr_decay_fraction": (lambda v: 0 <= v <= 1, "a fraction of the budget in [0, 1], or null for no decay", "0.5"),
+    "grad_clip": (lambda v: math.isfinite(v) and v > 0, "a finite norm > 0, or null for no clipping", "20"),
+    "ema_decay": (lambda v: 0 <= v < 1, "in [0, 1) (0: no averaging), or null for no averaging", "0.995"),
+    "max_minutes": (lambda v: math.isfinite(v) and v > 0, "a finite time > 0, or null for no time budget", "10"),
+    "checkpoint_every": (lambda v: v >= 1, ">= 1 step", "100"),
+    "log_every": (lambda v: v >= 1, ">= 1 step", "10"),
+}
+
+
 def train_config(cfg: Mapping[str, Any] | TrainConf | None) -> TrainConf:
-    """A :class:`TrainConf` from a train config mapping (``conf/train``), with ``log_dir`` and unknown keys
-    rejected by name; raises ValueError listing the valid keys."""
+    """A :class:`TrainConf` from a train config mapping (``conf/train``). Raises ValueError naming the key
+    (``train.<key>``), the value and a fix for an unknown key (listing the valid ones), a value of the wrong type
+    (a string for a number, NaN) and one out of its range (a negative rate, clip or budget, a batch of 0, an
+    EMA decay of 1 or more: each would train silently the wrong way, or fail later with a bare error)."""
     if isinstance(cfg, TrainConf):
         return cfg
     cfg = dict(cfg or {})
     check_known(cfg, [f.name for f in dataclasses.fields(TrainConf)], "train parameter")
-    if int(cfg.get("seed", 0)) < 0:
-        raise ValueError(f"train.seed must be >= 0 (it seeds numpy's generator), got {cfg['seed']}; e.g. train.seed=0")
+    hints = typing.get_type_hints(TrainConf)
+    for key, value in cfg.items():
+        check_type(value, hints[key], "train parameter", key, "train.")
+        if key in _RANGES and value is not None and not _RANGES[key][0](value):
+            _, rule, example = _RANGES[key]
+            raise ValueError(f"train.{key} must be {rule}, got {value!r}; e.g. train.{key}={example}")
     return TrainConf(**cfg)
 
 

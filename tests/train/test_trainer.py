@@ -212,6 +212,31 @@ def test_an_unknown_train_key_is_named():
         train_config({"epochs": 2, "window": 3})
 
 
+@pytest.mark.parametrize("key, value", [("lr", -0.01), ("lr", float("inf")), ("lr_after", -0.01), ("grad_clip", -1.0), ("grad_clip", 0.0),
+                                        ("ema_decay", 1.5), ("ema_decay", 1.0), ("lr_decay_fraction", -1.0), ("max_minutes", -1.0),
+                                        ("steps", -1), ("epochs", -1), ("batch_size", 0), ("checkpoint_every", 0), ("log_every", 0),
+                                        ("lr_switch_epoch", -2)])  # fmt: skip
+def test_a_train_value_out_of_its_range_is_named_with_a_fix(key, value):
+    """Each of these once trained silently the wrong way (a negative rate or clip ascends the loss, a decay >= 1
+    freezes the averaged weights), only warned (a negative time budget) or failed later with a bare error (a batch
+    of 0: ZeroDivisionError; a checkpoint interval of 0: modulo by zero)."""
+    with pytest.raises(ValueError, match=rf"train\.{key} must be .*, got {value!r}; e\.g\. train\.{key}="):
+        train_config({key: value})
+
+
+@pytest.mark.parametrize("key, value", [("lr", float("nan")), ("lr", "1e-3x"), ("batch_size", 8.5), ("ema_decay", float("nan"))])
+def test_a_train_value_of_the_wrong_type_is_named(key, value):
+    with pytest.raises(ValueError, match=rf"train parameter {key} must be an? \w+( or None)?, not .*\(train\.{key}=\.\.\.\)"):
+        train_config({key: value})
+
+
+def test_the_edges_of_the_train_ranges_are_accepted():
+    """0 steps or epochs is the untrained model (a row of the tables), 0 EMA decay no averaging, null the key's default."""
+    for given in ({"epochs": 0}, {"steps": 0}, {"ema_decay": 0.0}, {"lr_after": None, "grad_clip": None, "max_minutes": None},
+                  {"lr_decay_fraction": 1.0, "lr_switch_epoch": 0, "batch_size": 1, "checkpoint_every": 1, "log_every": 1}):  # fmt: skip
+        assert train_config(given) == TrainConf(**given)
+
+
 def test_an_epoch_evaluation_runs_after_every_epoch_and_survives_a_resume(tmp_path):
     def with_eval(**kw):
         objective, params = toy(**kw)
