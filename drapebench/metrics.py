@@ -12,6 +12,8 @@ subtracted in float64; float32 positions farther than :data:`MAX_FLOAT32_DISTANC
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 import pandas as pd
 import torch
@@ -20,6 +22,8 @@ from drapebench.geometry.ops import edge_lengths, face_areas
 from drapebench.geometry.sdf import body_proximity
 from drapebench.physics import Material, energy_terms
 from drapebench.progress import progress
+
+log = logging.getLogger("drapebench")
 
 MAX_FLOAT32_DISTANCE = 1000.0  # m: the farthest float32 positions are measured from the origin (docs/metrics.md)
 
@@ -91,7 +95,8 @@ def evaluate(
             is posed per chunk unless ``seq`` already holds its posed geometry, so memory stays bounded as
             sequences grow.
     Returns:
-        (summary dict of floats, per-frame DataFrame with a ``frame`` column and one column per metric).
+        (summary dict of floats (None for jitter and drift_mm where the drape is too short to measure them), per-frame
+        DataFrame with a ``frame`` column and one column per metric).
     """
     if chunk_frames < 1:
         raise ValueError(f"chunk_frames must be >= 1, got {chunk_frames}")
@@ -137,7 +142,19 @@ def evaluate(
     summary["max_strain"], summary["max_penetration_mm"] = float(df["max_strain"].max()), float(df["max_penetration_mm"].max())
     summary["drift_mm"] = drift(df["garment_body_mm"].to_numpy())
     summary["n_frames_evaluated"] = len(df)
+    _null_unmeasured(summary, len(df))
     return summary, df
+
+
+def _null_unmeasured(summary: dict, n_evaluated: int) -> None:
+    """Set to None (JSON's null, where it would have written NaN) the frame-to-frame metrics a drape too short cannot
+    measure: ``jitter`` needs a frame with both neighbours, ``drift_mm`` 10 evaluated frames; a warning names them."""
+    unmeasured = [k for k in ("jitter", "drift_mm") if np.isnan(summary[k])]
+    if unmeasured:
+        log.warning("%s not measured on %d evaluated frame(s): jitter needs a frame with both neighbours, drift_mm 10 frames "
+                    "(raise motion.n_frames, or set motion.transition to 0 to evaluate every frame); written as null",
+                    " and ".join(unmeasured), n_evaluated)  # fmt: skip
+        summary.update(dict.fromkeys(unmeasured))
 
 
 def _fill(columns: dict, cols: dict, at: int, n_rows: int) -> None:
