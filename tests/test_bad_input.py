@@ -272,6 +272,17 @@ def test_cuda_without_a_cuda_torch_names_the_fix(monkeypatch):
         load_body("anny_lowres", device="gpu0")
 
 
+def test_a_device_other_than_cpu_or_cuda_and_a_missing_gpu_index_name_the_fix(monkeypatch):
+    """``device=mps`` (or ``meta``) once passed to torch and failed later with its bare error."""
+    for device in ("mps", "meta"):
+        with pytest.raises(ValueError, match=rf"device={device} is not supported: the suite runs on device=cpu or device=cuda"):
+            load_body("anny_lowres", device=device)
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
+    monkeypatch.setattr(torch.cuda, "device_count", lambda: 1)
+    with pytest.raises(ValueError, match=r"device=cuda:1 requested but this machine has 1 CUDA GPU\(s\), numbered from 0"):
+        load_body("anny_lowres", device="cuda:1")
+
+
 @pytest.mark.parametrize(
     "motion, message",
     [

@@ -421,15 +421,23 @@ def _read_model_file(path: Path) -> dict:
 
 
 def torch_device(device) -> torch.device:
-    """``device`` as a torch device; ValueError naming the fix when it asks for CUDA and torch has none."""
+    """``device`` as a torch device; ValueError naming the fix when it is not a CPU or CUDA device (the reference
+    simulator's and the BVH's kernels run on those two alone), asks for CUDA and torch has none, or names a GPU
+    index this machine does not have."""
     try:
         dev = torch.device(device)
     except RuntimeError as err:
         raise ValueError(f"device {device!r} is not a torch device ({err}); use device=cpu or device=cuda") from err
+    if dev.type not in ("cpu", "cuda"):
+        raise ValueError(f"device={device} is not supported: the suite runs on device=cpu or device=cuda (cuda:N for the "
+                         "N-th GPU), where its warp kernels run")  # fmt: skip
     if dev.type == "cuda" and not torch.cuda.is_available():
         why = "this torch is a CPU-only build" if torch.version.cuda is None else "no CUDA GPU is visible"
         raise ValueError(f"device={device} requested but {why} (torch {torch.__version__}); use device=cpu, or install a "
                          "CUDA build of torch (make venv TORCH_SPEC=... ; see README)")  # fmt: skip
+    if dev.type == "cuda" and dev.index is not None and dev.index >= torch.cuda.device_count():
+        raise ValueError(f"device={device} requested but this machine has {torch.cuda.device_count()} CUDA GPU(s), "
+                         "numbered from 0; use device=cuda (the first) or device=cuda:N with N below that count")  # fmt: skip
     return dev
 
 
