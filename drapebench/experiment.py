@@ -353,6 +353,29 @@ def failure_record(cfg: DictConfig, err: BaseException) -> dict:
             "message": str(err), "experiment": cfg.experiment_name, "commit": git_commit()}  # fmt: skip
 
 
+def _recorded_body(cfg: DictConfig, body, viz: str):
+    """The body drape.rrd draws: ``viz_body`` (e.g. anny_lowres, a lighter body playing the same motion) or the run's
+    ``body``; None without a recording, where a given ``viz_body`` is ignored with a warning. Raises ValueError when
+    ``viz_body`` cannot play the run's motion (another skeleton)."""
+    from drapebench.body import load_body
+
+    if viz != "rerun":
+        if cfg.viz_body is not None:
+            log.warning("viz_body=%s is read only by viz=rerun (this run records nothing, viz=%s): ignored", cfg.viz_body, viz)
+        return None
+    if cfg.viz_body is None:
+        return body
+    try:
+        shown = load_body(cfg.viz_body)
+    except (FileNotFoundError, ValueError) as err:
+        raise ValueError(f"viz_body={cfg.viz_body} cannot be loaded ({err}); give viz_body a shipped body (anny, anny_lowres) or "
+                         "a body file's path, or leave it unset to draw the run's body") from err  # fmt: skip
+    if shown.n_joints != body.n_joints:
+        raise ValueError(f"viz_body={cfg.viz_body} has {shown.n_joints} joints, the run's body {body.name} {body.n_joints}: "
+                         "it cannot play the same motion; choose a body of the same skeleton (anny, anny_lowres)")  # fmt: skip
+    return shown
+
+
 def _run(cfg: DictConfig, out: Path) -> dict:
     from drapebench.body import load_body
     from drapebench.body.model import torch_device
@@ -386,6 +409,7 @@ def _run(cfg: DictConfig, out: Path) -> dict:
     scene = Scene.from_config(cfg, device="cpu")
     body, material, seq, garment, dtype = scene.body, scene.material, scene.seq, scene.garment, scene.dtype
     run_body = body if device.type == "cpu" else load_body(cfg.body.name, dtype=dtype, device=device)
+    shown = _recorded_body(cfg, body, viz)  # before the drape: a bad viz_body is refused, not found after the work
     stages["scene_s"] = time.perf_counter() - t
     garment_name = garment_label(cfg.garment)  # the name its record, recording and export go by
     log.info("scene: %s (%d vertices) on %s, %s (%d frames) in %.1f s", garment_name, garment.n_vertices, body.name, seq.name,
@@ -454,10 +478,6 @@ def _run(cfg: DictConfig, out: Path) -> dict:
         t = time.perf_counter()
         vertices = result.vertices[:]  # the whole drape, as the recording holds it
         inside = inside_body(vertices, seq.vertices(body), body.faces)  # the rule behind eps_c
-        shown = body if cfg.viz_body is None else load_body(cfg.viz_body)  # a lighter body, same motion
-        if shown.n_joints != body.n_joints:
-            raise ValueError(f"viz_body={cfg.viz_body} has {shown.n_joints} joints, the run's body {body.name} {body.n_joints}: "
-                             "it cannot play the same motion; choose a body of the same skeleton (anny, anny_lowres)")  # fmt: skip
         record_drape(out / "drape.rrd", seq.vertices(shown), shown.faces, vertices, garment.topology, seq.fps,
                      penetrating=inside, reference=reference, stages=result.extras, metrics=frames,
                      name=f"{cfg.method.name}_{garment_name}_{seq.name}", in_place=seq.trans, displaced_from=method.displaced_from)  # fmt: skip

@@ -550,6 +550,20 @@ def test_viz_body_draws_another_body_while_collisions_follow_the_runs_body(tmp_p
     assert list(seen["metrics"]["frame"])[0] == 3 and "eps_c" in seen["metrics"]  # the evaluated frames, plotted
 
 
+def test_a_bad_viz_body_is_refused_before_the_drape_and_ignored_with_a_warning_without_a_recording(tmp_path, monkeypatch, caplog):
+    """``viz_body=foo`` was once found only when the recording began, after the reference, training and drape."""
+    import drapebench.drape_stream
+    from drapebench.experiment import run
+
+    monkeypatch.setattr(drapebench.drape_stream, "stream_drape", lambda *a, **k: pytest.fail("the drape ran"))
+    with pytest.raises(ValueError, match=r"viz_body=foo cannot be loaded \(.*\); give viz_body a shipped body \(anny, anny_lowres\)"):
+        run(_compose([*FAST, "reference=none", "viz_body=foo"]), tmp_path / "a")
+    monkeypatch.undo()
+    with caplog.at_level("WARNING", logger="drapebench"):
+        rec = run(_compose([*FAST, "reference=none", "viz=none", "viz_body=foo"]), tmp_path / "b")
+    assert "viz_body=foo is read only by viz=rerun" in caplog.text and rec["eps_e"] > 0
+
+
 def test_a_drape_with_nan_is_a_failure_naming_its_frames(tmp_path, monkeypatch):
     from drapebench.experiment import run
     from methods.base import DrapeResult
