@@ -272,6 +272,17 @@ def test_cuda_without_a_cuda_torch_names_the_fix(monkeypatch):
         load_body("anny_lowres", device="gpu0")
 
 
+@pytest.mark.parametrize("key, value", [("max_speed", float("inf")), ("contact_gap", float("inf")), ("contact_ke", float("inf")),
+                                        ("damping", float("inf")), ("contact_kd", -1.0), ("max_speed", 0.0)])  # fmt: skip
+def test_a_reference_setting_that_is_infinite_or_out_of_range_is_named(key, value):
+    """``reference.max_speed=inf`` once turned the blow-up check off and ``contact_gap=inf`` reached the simulator."""
+    from drapebench.reference.settings import SimSettings
+
+    with pytest.raises(ValueError, match=rf"reference {key} must be finite and >=? 0, got {value}; e\.g\. reference\.{key}=\d"):
+        SimSettings.for_solver("vbd", **{key: value})
+    assert SimSettings.for_solver("vbd", contact_gap=0.0, damping=0.0, contact_kd=0.0).contact_gap == 0.0  # 0 is in range
+
+
 def test_a_device_other_than_cpu_or_cuda_and_a_missing_gpu_index_name_the_fix(monkeypatch):
     """``device=mps`` (or ``meta``) once passed to torch and failed later with its bare error."""
     for device in ("mps", "meta"):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import typing
 from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
@@ -56,12 +57,12 @@ class SimSettings:
                 raise ValueError(f"reference {key} must be >= 1, got {getattr(self, key)}")
         if int(self.settle_frames) < 0:
             raise ValueError(f"reference settle_frames must be >= 0, got {self.settle_frames}")
-        for key in ("contact_ke", "max_speed"):
-            if not float(getattr(self, key)) > 0:
-                raise ValueError(f"reference {key} must be positive, got {getattr(self, key)}")
-        for key in ("contact_kd", "contact_gap", "damping"):
-            if float(getattr(self, key)) < 0:
-                raise ValueError(f"reference {key} must be >= 0, got {getattr(self, key)}")
+        defaults = {f.name: f.default for f in fields(self)}
+        for key, positive in (("contact_ke", True), ("max_speed", True), ("contact_kd", False), ("contact_gap", False), ("damping", False)):
+            value = float(getattr(self, key))  # inf would disable the check or the contact it sets, silently
+            if not (math.isfinite(value) and (value > 0 if positive else value >= 0)):
+                raise ValueError(f"reference {key} must be finite and {'> 0' if positive else '>= 0'}, got {getattr(self, key)}; "
+                                 f"e.g. reference.{key}={defaults[key]}")  # fmt: skip
 
     @classmethod
     def for_solver(cls, solver: str = "vbd", **overrides) -> "SimSettings":
