@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import difflib
 import math
+import numbers
 import types
 import typing
 from collections.abc import Iterable, Mapping, Sequence
@@ -72,6 +73,11 @@ def hint_of(default):
 def is_number(value) -> bool:
     """Whether ``value`` is an int or a float (not a bool)."""
     return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def is_finite_number(value) -> bool:
+    """Whether ``value`` is a finite real number: an int or a float, numpy's included (not a bool, NaN or inf)."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value)
 
 
 def _describe(hint) -> str:

@@ -272,6 +272,19 @@ def test_cuda_without_a_cuda_torch_names_the_fix(monkeypatch):
         load_body("anny_lowres", device="gpu0")
 
 
+@pytest.mark.parametrize("value", [float("nan"), float("inf"), "1.0"])
+def test_a_motion_or_garment_parameter_that_is_not_a_finite_number_is_named(value, body_lowres):
+    """``motion.params.amplitude=nan`` once failed with "pose contains NaN" and ``=inf`` gave a saturated pose silently;
+    ``garment.params.length=nan`` failed with "the mesh has no faces to keep"."""
+    m = {"name": "walk", "n_frames": 4, "fps": 30.0, "transition": 0, "seed": 0, "params": {"amplitude": value}}
+    with pytest.raises(ValueError, match=rf"motion\.params\.amplitude must be a finite number, got .*; e\.g\. motion\.params\.amplitude=1\.0"):
+        sequence_from_config(m, body_lowres)
+    with pytest.raises(ValueError, match=r"garment\.params\.length must be a finite number, got .*; e\.g\. garment\.params\.length=0\.45"):
+        make_garment("skirt", body_lowres, cache=False, length=value)
+    assert make_sequence("walk", 4, amplitude=np.int64(2), transition=0).n_frames == 4  # numpy's numbers are numbers
+    assert make_sequence("kick", 4, side="left", transition=0).n_frames == 4  # a word parameter is not a number
+
+
 @pytest.mark.parametrize("key, value", [("max_speed", float("inf")), ("contact_gap", float("inf")), ("contact_ke", float("inf")),
                                         ("damping", float("inf")), ("contact_kd", -1.0), ("max_speed", 0.0)])  # fmt: skip
 def test_a_reference_setting_that_is_infinite_or_out_of_range_is_named(key, value):

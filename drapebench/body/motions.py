@@ -24,6 +24,7 @@ The seed varies amplitude (+-15 %), cadence (+-10 %) and phase; ``amplitude``, `
 
 from __future__ import annotations
 
+import math
 from functools import lru_cache
 
 import numpy as np
@@ -33,7 +34,7 @@ from drapebench.body.bake import JOINT_NAMES
 from drapebench.body.lbs import lbs
 from drapebench.body.limits import JOINT_LIMITS
 from drapebench.body.random_motion import random_motion
-from drapebench.keys import check_known
+from drapebench.keys import check_known, is_finite_number, is_number
 from drapebench.progress import progress
 
 NAMED_MOTIONS = ("walk", "run", "jump", "arm_raise", "squat", "twist", "kick", "dance", "static", "stress")
@@ -303,6 +304,9 @@ def generate(motion: str, n_frames: int, fps: float, seed: int, transition: int 
         raise ValueError(f"motion.seed must be >= 0 (it seeds numpy's generator), got {seed}; e.g. motion.seed=1000")
     builder, defaults = _SPECS[motion]
     check_known(params, defaults, "parameter", f"for motion {motion!r}")
+    for name, value in params.items():  # a NaN made a NaN pose, an inf a silently saturated one
+        if is_number(defaults[name]) and not is_finite_number(value):
+            raise ValueError(f"motion.params.{name} must be a finite number, got {value!r}; e.g. motion.params.{name}={defaults[name]}")
     p = {**defaults, **params}
     rng = np.random.default_rng(seed)
     if "amplitude" in p:

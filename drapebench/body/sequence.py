@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
-import numbers
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -16,6 +14,7 @@ from drapebench.body.model import BodyModel, BodyOutput
 from drapebench.body.motions import generate
 from drapebench.cache import atomic_write
 from drapebench.geometry.ops import vertex_normals
+from drapebench.keys import is_finite_number
 
 LOCAL_REUSE = 2.0  # m: root translation up to which posed_frames(local=True) reuses the cached world geometry
 #                    (world coordinates under 4 m: float32 rounds them as finely as the body's own scale)
@@ -66,7 +65,7 @@ class BodySequence:
         for key in ("betas", "poses", "trans"):
             if not torch.isfinite(getattr(self, key)).all():
                 raise ValueError(f"{self.name}: {key} contains NaN or Inf")
-        if isinstance(self.fps, bool) or not isinstance(self.fps, numbers.Real) or not (math.isfinite(self.fps) and self.fps > 0):
+        if not (is_finite_number(self.fps) and self.fps > 0):
             raise ValueError(f"{self.name}: fps must be a finite number of frames per second > 0, got {self.fps!r}; e.g. fps=30")
         if not 0 <= self.n_transition <= self.poses.shape[0]:
             raise ValueError(f"{self.name}: n_transition {self.n_transition} outside [0, {self.poses.shape[0]}]")

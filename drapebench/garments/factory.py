@@ -16,6 +16,7 @@ ease, length and sleeve slightly.
 
 from __future__ import annotations
 
+import math
 import pickle
 
 import numpy as np
@@ -28,7 +29,7 @@ from drapebench.garments.garment import Garment, load_garment
 from drapebench.garments.mesh_ops import cut_by_field, isotropic_remesh, keep_component_near
 from drapebench.garments.validate import validate_garment
 from drapebench.geometry.topology import get_topology
-from drapebench.keys import check_known, is_number
+from drapebench.keys import check_known, is_finite_number, is_number
 
 TOPS = ("tshirt", "tank", "longsleeve")
 LOOSE = ("skirt", "dress", "gown")
@@ -179,16 +180,19 @@ def garment_params(kind: str, seed: int = 0, **params) -> dict:
     """Full parameter set of a kind (defaults + overrides), with the seed's small variations applied."""
     if kind not in DEFAULTS:
         raise ValueError(f"unknown garment kind {kind!r}; valid kinds: {', '.join(GARMENT_KINDS)}")
-    p = {**COMMON, **DEFAULTS[kind]}
-    check_known(params, p, "parameter", f"for {kind}")
-    p.update(params)
+    defaults = {**COMMON, **DEFAULTS[kind]}
+    check_known(params, defaults, "parameter", f"for {kind}")
+    p = {**defaults, **params}
     if seed < 0:
         raise ValueError(f"garment.seed must be >= 0 (it seeds numpy's generator), got {seed}; e.g. garment.seed=0")
+    for name, value in params.items():
+        if not is_finite_number(value):
+            raise ValueError(f"garment.params.{name} must be a finite number, got {value!r}; e.g. garment.params.{name}={defaults[name]}")
     if not 0.003 <= p["resolution"] <= 0.05:
-        raise ValueError(f"resolution {p['resolution']} m is outside [0.003, 0.05]")
+        raise ValueError(f"garment.params.resolution {p['resolution']} m is outside [0.003, 0.05]; e.g. garment.params.resolution={COMMON['resolution']}")
     for name in ("ease", "closing"):
         if not 0.0 <= p.get(name, 0.0) <= SDF_BAND[1] - 0.005:
-            raise ValueError(f"{name} {p[name]} m is outside [0, {SDF_BAND[1] - 0.005:g}]: the body distance grid is exact "
+            raise ValueError(f"garment.params.{name} {p[name]} m is outside [0, {SDF_BAND[1] - 0.005:g}]: the body distance grid is exact "
                              f"only within {SDF_BAND[1]:g} m of the body (drapebench.garments.fields.SDF_BAND)")
     if seed:
         rng = np.random.default_rng(seed)

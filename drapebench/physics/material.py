@@ -12,13 +12,12 @@ A = E / (1 - nu^2), mu = A (1 - nu) / 2, lambda = A nu, k_bend = A t^3 / 12 x be
 from __future__ import annotations
 
 import math
-import numbers
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import yaml
 
-from drapebench.keys import check_known
+from drapebench.keys import check_known, is_finite_number
 
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf" / "material"
 # What a cloth can be (field: lowest, highest, unit): generous bounds around the presets (cotton, silk,
@@ -64,7 +63,7 @@ class Material:
     def __post_init__(self) -> None:
         for key in ("thickness", "bulk_density", "young", "poisson", "bending_multiplier", "collision_thickness", "friction", "dt"):
             value = getattr(self, key)
-            if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
+            if not is_finite_number(value):
                 raise ValueError(f"Material.{key} must be a finite number, got {value!r} (material.{key}=...; presets: conf/material/)")
         for key in ("thickness", "bulk_density", "young", "bending_multiplier", "dt"):
             if not getattr(self, key) > 0:
