@@ -175,6 +175,28 @@ def collect_failures(dirs) -> pd.DataFrame:
     return with_scene(pd.DataFrame(rows))
 
 
+def collect_unfinished(dirs) -> pd.DataFrame:
+    """One row per Hydra job folder below ``dirs`` (its ``.hydra/overrides.yaml``) without ``metrics.json`` or
+    ``failed.json``: a job interrupted (killed, out of memory, Ctrl-C) or still running. ``status`` "unfinished", its
+    method, garment and motion (from its ``config.yaml``, else Hydra's), a ``message`` with the command that finishes it
+    (its overrides, into its own folder), and its ``run_dir``; an empty frame when there is none."""
+    from drapebench.garments import garment_label
+
+    rows = []
+    for overrides in (f for d in map(Path, dirs) for f in _run_files(d, "overrides.yaml") if f.parent.name == ".hydra"):
+        job = overrides.parent.parent
+        if (job / "metrics.json").exists() or (job / "failed.json").exists():
+            continue
+        conf = job / "config.yaml" if (job / "config.yaml").exists() else overrides.parent / "config.yaml"
+        cfg = (yaml.safe_load(conf.read_text()) or {}) if conf.exists() else {}
+        given = " ".join(yaml.safe_load(overrides.read_text()) or [])
+        rows.append({"status": "unfinished", "method": (cfg.get("method") or {}).get("name"), "garment": garment_label(cfg.get("garment") or {"kind": None}),
+                     "motion": (cfg.get("motion") or {}).get("name"), "run_dir": str(job),
+                     "message": f"no metrics.json or failed.json: the job was interrupted or is still running (its log: {job / 'run.log'}); "
+                                f"finish it with python run.py {given} hydra.run.dir={job} (a training resumes from its checkpoint)"})  # fmt: skip
+    return pd.DataFrame(rows)
+
+
 def failure_notes(failed: pd.DataFrame, where, what: str = "failed") -> str:
     """One line per distinct failure message (the runs it stopped, "method on <where(row)>", named once each, with
     a count where runs repeat, then ``what`` and the message), in the order the failures were found; "" when none
@@ -850,9 +872,9 @@ def gpu_out(out: Path, df: pd.DataFrame) -> Path:
 
 
 def write_summary(sweep_dir: Path) -> Path:
-    """``summary.md`` and ``summary.csv`` at a sweep root: one row per finished job, and per failed one
-    (``status`` "failed" with its message) when any was recorded with ``on_failure=record``."""
-    failed = collect_failures([sweep_dir])
+    """``summary.md`` and ``summary.csv`` at a sweep root: one row per finished job, per failed one (``status``
+    "failed" with its message) and per unfinished one (:func:`collect_unfinished`: "unfinished", with the fix)."""
+    failed = pd.concat([collect_failures([sweep_dir]), collect_unfinished([sweep_dir])])
     try:
         df = collect([sweep_dir])
     except FileNotFoundError:

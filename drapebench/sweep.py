@@ -18,8 +18,8 @@ log = logging.getLogger("drapebench")
 class SweepSummary(Callback):
     """Hydra callback: at the end of a sweep, gather every job's metrics.json into summary.md / summary.csv.
     A job that raises leaves ``failed.json`` (the error and its message) in its folder; a sweep that stops
-    early still gets its summary (finished and failed jobs), and one that stops before any job started
-    (a bad override) leaves no empty folder behind."""
+    early still gets its summary (finished, failed and unfinished jobs, the last with the command that finishes
+    each), and one that stops before any job started (a bad override) leaves no empty folder behind."""
 
     def on_multirun_start(self, config: DictConfig, **kwargs) -> None:
         import atexit
@@ -63,6 +63,6 @@ class SweepSummary(Callback):
             return
         try:
             self._summarise(sweep_dir)
-            print(f"the sweep stopped early; finished and failed jobs: {sweep_dir / 'summary.md'}", file=sys.stderr)
+            print(f"the sweep stopped early; finished, failed and unfinished jobs: {sweep_dir / 'summary.md'}", file=sys.stderr)
         except FileNotFoundError:  # no job finished or recorded a failure
             print(f"the sweep stopped before any job finished; see the run.log in each job folder of {sweep_dir}", file=sys.stderr)

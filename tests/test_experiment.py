@@ -533,6 +533,23 @@ def test_a_failed_sweep_says_what_failed_and_leaves_no_empty_folder(tmp_path):
     assert summary.count("| failed ") == 2 and "n_frames" in summary
 
 
+def test_an_interrupted_sweep_job_is_listed_unfinished_with_the_command_that_finishes_it(tmp_path):
+    """A job killed mid-run (no metrics.json, no failed.json) was once missing from summary.md, as if never planned."""
+    from drapebench.experiment import run
+    from drapebench.report import write_summary
+
+    sweep = tmp_path / "sweep"
+    run(_compose([*FAST, "reference=none", "viz=none", "tracker=none"]), sweep / "0")
+    killed = sweep / "1"
+    (killed / ".hydra").mkdir(parents=True)
+    (killed / "config.yaml").write_text((sweep / "0" / "config.yaml").read_text().replace("name: walk", "name: kick"))
+    (killed / ".hydra" / "overrides.yaml").write_text("- motion=kick\n- viz=none\n")
+    summary = write_summary(sweep).read_text()
+    rows = {line.split("|")[1].strip(): line for line in summary.splitlines() if line.startswith("| ") and "status" not in line}
+    assert set(rows) == {"ok", "unfinished"} and "kick" in rows["unfinished"] and "walk" in rows["ok"]
+    assert f"finish it with python run.py motion=kick viz=none hydra.run.dir={killed}" in rows["unfinished"]
+
+
 def test_viz_body_draws_another_body_while_collisions_follow_the_runs_body(tmp_path, monkeypatch, body_full, body_lowres):
     import drapebench.viz
     from drapebench.experiment import run
