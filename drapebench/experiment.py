@@ -393,6 +393,8 @@ def _run(cfg: DictConfig, out: Path) -> dict:
         from drapebench.viz import require_rerun
 
         require_rerun()  # likewise
+    if int(cfg.seed) < 0:  # train.seed, motion.seed and garment.seed are checked where they are read
+        raise ValueError(f"seed must be >= 0 (it seeds torch and, through train.seed, numpy's generator), got {cfg.seed}; e.g. seed=0")
     torch.set_num_threads(job_threads(cfg))
     torch.manual_seed(int(cfg.seed))
     method_cls = method_class(cfg)  # fail fast on an unknown method

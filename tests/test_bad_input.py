@@ -380,6 +380,13 @@ def test_a_negative_seed_is_named(key, body_lowres):
             ReferenceSetSpec(seed=-1)
 
 
+def test_a_negative_run_seed_is_named_before_any_work(tmp_path):
+    """``seed=-1`` with lbs (which trains nothing, so train.seed's check never ran) was once accepted and recorded."""
+    with pytest.raises(ValueError, match=r"seed must be >= 0 \(it seeds torch and, through train.seed, numpy's generator\), got -1; e\.g\. seed=0"):
+        run(_compose(["method=lbs", "seed=-1", "viz=none", "reference=none", "tracker=none"]), tmp_path / "run")
+    assert not (tmp_path / "run" / "metrics.json").exists()
+
+
 @pytest.mark.parametrize("fps", [float("inf"), float("nan"), -30.0])
 def test_a_non_finite_or_negative_fps_is_named_as_the_frame_rate(fps, body_lowres):
     m = {"name": "walk", "n_frames": 4, "fps": fps, "transition": 2, "seed": 0, "betas": None, "params": {}}

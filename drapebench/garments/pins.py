@@ -46,9 +46,11 @@ def check_pins(pins, n_vertices: int, name: str) -> torch.Tensor:
     pins = torch.as_tensor(pins, dtype=torch.long).reshape(-1)
     bad = pins[(pins < 0) | (pins >= n_vertices)]
     if len(bad):
-        raise ValueError(f"garment {name!r}: pin indices {bad[:10].tolist()} are outside [0, {n_vertices}) (0-based vertex indices)")
+        raise ValueError(f"garment {name!r}: pin indices {bad[:10].tolist()} are outside [0, {n_vertices}) (0-based vertex indices); "
+                         f"give garment.pins (load_garment's pins) indices below {n_vertices}, or none to have them found")  # fmt: skip
     if len(pins.unique()) < MIN_PINS:
-        raise ValueError(f"garment {name!r}: {len(pins.unique())} distinct pins given, at least {MIN_PINS} needed (or none: they are found)")
+        raise ValueError(f"garment {name!r}: {len(pins.unique())} distinct pins given, at least {MIN_PINS} needed; give garment.pins "
+                         f"(load_garment's pins) {MIN_PINS} or more distinct vertex indices, or none to have them found")  # fmt: skip
     return pins
 
 

@@ -35,6 +35,11 @@ RANGES = {
 MAX_GRAVITY = 100.0  # m/s^2 (about 10 g)
 
 
+def _fix(key: str) -> str:
+    """The fix a message on Material's ``key`` ends with: cotton's value as an example, and the presets."""
+    return f"e.g. material.{key}={Material.__dataclass_fields__[key].default:g} (cotton), or a preset: conf/material/"
+
+
 @dataclass(frozen=True)
 class Material:
     """A cloth material (defaults: the cotton of SNUG and Chen et al. 2024, ``docs/references.md``).
@@ -64,12 +69,12 @@ class Material:
         for key in ("thickness", "bulk_density", "young", "poisson", "bending_multiplier", "collision_thickness", "friction", "dt"):
             value = getattr(self, key)
             if not is_finite_number(value):
-                raise ValueError(f"Material.{key} must be a finite number, got {value!r} (material.{key}=...; presets: conf/material/)")
+                raise ValueError(f"Material.{key} must be a finite number, got {value!r}; {_fix(key)}")
         for key in ("thickness", "bulk_density", "young", "bending_multiplier", "dt"):
             if not getattr(self, key) > 0:
-                raise ValueError(f"Material.{key} must be positive, got {getattr(self, key)}")
+                raise ValueError(f"Material.{key} must be positive, got {getattr(self, key)}; {_fix(key)}")
         if not 0.0 <= self.poisson < 0.5:
-            raise ValueError(f"Material.poisson must be in [0, 0.5), got {self.poisson}")
+            raise ValueError(f"Material.poisson must be in [0, 0.5), got {self.poisson}; {_fix('poisson')}")
         for key, (lo, hi, unit) in RANGES.items():
             if not lo <= getattr(self, key) <= hi:
                 raise ValueError(f"Material.{key} = {getattr(self, key):g} {unit} is outside [{lo:g}, {hi:g}] {unit}, the range of "

@@ -143,11 +143,11 @@ def test_a_negative_ease_or_a_resolution_out_of_range_is_refused():
 def test_user_pins_outside_the_vertex_range_or_too_few_are_refused():
     from drapebench.garments.pins import check_pins
 
-    with pytest.raises(ValueError, match=r"pin indices \[-1\] are outside \[0, 10\)"):
+    with pytest.raises(ValueError, match=r"pin indices \[-1\] are outside \[0, 10\) \(0-based vertex indices\); give garment.pins"):
         check_pins([-1, 2, 3, 4], 10, "toy")
     with pytest.raises(ValueError, match=r"pin indices \[10\] are outside"):
         check_pins([1, 2, 3, 10], 10, "toy")
-    with pytest.raises(ValueError, match="2 distinct pins given"):
+    with pytest.raises(ValueError, match=r"2 distinct pins given, at least 3 needed; give garment.pins \(load_garment's pins\) 3 or more"):
         check_pins([1, 1, 2], 10, "toy")
     assert check_pins([0, 5, 9], 10, "toy").tolist() == [0, 5, 9]
 

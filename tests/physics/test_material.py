@@ -56,7 +56,9 @@ def test_bad_materials_are_named():
 
 
 @pytest.mark.parametrize("changes, message", [
-    ({"young": float("inf")}, r"Material.young must be a finite number, got inf"),
+    ({"young": float("inf")}, r"Material.young must be a finite number, got inf; e\.g\. material\.young=70000 \(cotton\), or a preset"),
+    ({"thickness": 0.0}, r"Material.thickness must be positive, got 0.0; e\.g\. material\.thickness=0\.00047 \(cotton\)"),
+    ({"poisson": 0.5}, r"Material.poisson must be in \[0, 0.5\), got 0.5; e\.g\. material\.poisson="),
     ({"friction": float("nan")}, r"Material.friction must be a finite number, got nan"),
     ({"collision_thickness": float("nan")}, r"Material.collision_thickness must be a finite number"),
     ({"gravity": (0.0, 0.0, float("nan"))}, r"Material.gravity must be finite and at most 100 m/s\^2"),
