@@ -34,6 +34,7 @@ from drapebench.results import METRICS, environment, git_commit, headline
 from drapebench.scene import Scene
 from drapebench.schema import check_keys, choice
 from drapebench.staleness import code_of, trained_by_changed_code
+from drapebench.sweep import restore_earlier_hydra
 from drapebench.tracker import track_run
 from drapebench.train.trainer import write_logs
 
@@ -331,7 +332,12 @@ def run(cfg: DictConfig, out_dir: str | Path | None = None) -> dict:
         out_dir = HydraConfig.get().runtime.output_dir
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    claim_run_dir(out, OmegaConf.to_yaml(cfg, resolve=True))
+    try:
+        claim_run_dir(out, OmegaConf.to_yaml(cfg, resolve=True))
+    except RunFolderInUse:
+        restore_earlier_hydra(out, restore=True)  # Hydra wrote this run's .hydra/ over the earlier run's
+        raise
+    restore_earlier_hydra(out, restore=False)
     try:
         with forcing(bool(cfg.force)):
             record = _run(cfg, out)

@@ -400,6 +400,19 @@ def test_a_run_into_a_folder_with_another_runs_results_is_refused_and_the_same_r
     assert (stray / "losses.csv").read_text() == "mine"
 
 
+def test_a_refused_run_leaves_the_earlier_runs_hydra_folder_as_it_was(tmp_path):
+    """Hydra writes ``.hydra/`` (config, overrides) into the run folder before the run starts; a run refused because the
+    folder holds another run's results once left that run's command overwritten by its own."""
+    out = tmp_path / "run"
+    first = ["body=anny_lowres", "motion.n_frames=4", "reference=none", "viz=none", "tracker=none", f"hydra.run.dir={out}"]
+    assert run_py(first, tmp_path).returncode == 0
+    earlier = {p.name: p.read_bytes() for p in (out / ".hydra").iterdir()}
+    refused = run_py([*first, "motion.n_frames=5"], tmp_path)
+    assert refused.returncode != 0 and "RunFolderInUse" in refused.stderr
+    assert {p.name: p.read_bytes() for p in (out / ".hydra").iterdir()} == earlier
+    assert sorted(p.name for p in out.iterdir() if p.name.startswith(".hydra")) == [".hydra"]  # nothing left aside
+
+
 def test_reference_adds_vertex_error(tmp_path, monkeypatch):
     import torch
 
