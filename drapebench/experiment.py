@@ -34,7 +34,7 @@ from drapebench.results import METRICS, environment, git_commit, headline
 from drapebench.scene import Scene
 from drapebench.schema import check_keys, choice
 from drapebench.staleness import code_of, trained_by_changed_code
-from drapebench.sweep import restore_earlier_hydra
+from drapebench.hydra_folder import forget_earlier_hydra, put_back_earlier_hydra
 from drapebench.tracker import track_run
 from drapebench.train.trainer import write_logs
 
@@ -325,19 +325,22 @@ def run(cfg: DictConfig, out_dir: str | Path | None = None) -> dict:
     instead of ``metrics.json`` and returns that record (``status`` "failed"). Raises ValueError for a
     config key nothing reads (:func:`drapebench.schema.check_keys`), and :class:`RunFolderInUse` when
     ``out_dir`` holds another run's results (:func:`claim_run_dir`)."""
-    check_keys(cfg)
     if out_dir is None:
         from hydra.core.hydra_config import HydraConfig
 
-        out_dir = HydraConfig.get().runtime.output_dir
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    try:
+        out_dir = HydraConfig.get().runtime.output_dir if HydraConfig.initialized() else None
+    out = Path(out_dir) if out_dir is not None else None
+    try:  # until the run takes the folder, the .hydra/ Hydra wrote over an earlier run's is put back on any error
+        check_keys(cfg)
+        if out is None:
+            raise ValueError("experiment.run needs out_dir outside a Hydra run (python run.py sets it)")
+        out.mkdir(parents=True, exist_ok=True)
         claim_run_dir(out, OmegaConf.to_yaml(cfg, resolve=True))
-    except RunFolderInUse:
-        restore_earlier_hydra(out, restore=True)  # Hydra wrote this run's .hydra/ over the earlier run's
+    except BaseException as err:
+        if out is not None:
+            put_back_earlier_hydra(out, refused=isinstance(err, RunFolderInUse))
         raise
-    restore_earlier_hydra(out, restore=False)
+    forget_earlier_hydra(out)
     try:
         with forcing(bool(cfg.force)):
             record = _run(cfg, out)

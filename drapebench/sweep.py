@@ -1,5 +1,5 @@
 """The Hydra callback of every sweep and run (``hydra.callbacks.sweep_summary`` in ``conf/config.yaml``): a sweep's
-summary, and a single run's guard of the ``.hydra/`` an earlier run left in its folder.
+summary, and a single run's copy of the ``.hydra/`` an earlier run left in its folder (:mod:`drapebench.hydra_folder`).
 
 It is instantiated when a sweep starts, before any job runs, so this module imports only Hydra: a sweep
 with a bad override fails within about a second instead of after the pipeline's imports.
@@ -24,8 +24,10 @@ class SweepSummary(Callback):
 
     def on_run_start(self, config: DictConfig, **kwargs) -> None:
         """A single run, before Hydra writes its ``.hydra/`` into the run folder: keep a copy of the one there (an
-        earlier run's), which :func:`restore_earlier_hydra` puts back when the run refuses the folder."""
+        earlier run's), which the run puts back when it does not take the folder."""
         if config.hydra.output_subdir is not None:
+            from drapebench.hydra_folder import keep_earlier_hydra
+
             keep_earlier_hydra(Path(str(config.hydra.run.dir)), str(config.hydra.output_subdir))
 
     def on_multirun_start(self, config: DictConfig, **kwargs) -> None:
@@ -73,34 +75,3 @@ class SweepSummary(Callback):
             print(f"the sweep stopped early; finished, failed and unfinished jobs: {sweep_dir / 'summary.md'}", file=sys.stderr)
         except FileNotFoundError:  # no job finished or recorded a failure
             print(f"the sweep stopped before any job finished; see the run.log in each job folder of {sweep_dir}", file=sys.stderr)
-
-
-_KEPT: dict[Path, tuple[Path, Path]] = {}  # run folder -> (its .hydra/, the copy keep_earlier_hydra kept of it)
-
-
-def keep_earlier_hydra(run_dir: Path, subdir: str) -> None:
-    """Copy ``run_dir/subdir`` (Hydra's ``.hydra/``), where it exists, aside before Hydra overwrites it."""
-    import shutil
-    import tempfile
-
-    hydra_dir = (run_dir / subdir).resolve()
-    if hydra_dir.is_dir():
-        kept = shutil.copytree(hydra_dir, Path(tempfile.mkdtemp(prefix="drapebench_hydra_")) / "kept")
-        _KEPT[run_dir.resolve()] = (hydra_dir, Path(kept))
-
-
-def restore_earlier_hydra(run_dir: Path, restore: bool) -> None:
-    """Put back the copy :func:`keep_earlier_hydra` kept of ``run_dir``'s ``.hydra/`` when ``restore`` (the run refused
-    a folder that holds another run's results: its ``.hydra/``, the command that made them, stays that run's), and
-    drop the copy either way."""
-    import shutil
-
-    hydra_dir, kept = _KEPT.pop(Path(run_dir).resolve(), (None, None))
-    if kept is None:
-        return
-    if restore:
-        aside = hydra_dir.with_name(hydra_dir.name + ".refused")
-        hydra_dir.rename(aside)
-        shutil.copytree(kept, hydra_dir)
-        shutil.rmtree(aside)
-    shutil.rmtree(kept.parent)

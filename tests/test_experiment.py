@@ -411,6 +411,9 @@ def test_a_refused_run_leaves_the_earlier_runs_hydra_folder_as_it_was(tmp_path):
     assert refused.returncode != 0 and "RunFolderInUse" in refused.stderr
     assert {p.name: p.read_bytes() for p in (out / ".hydra").iterdir()} == earlier
     assert sorted(p.name for p in out.iterdir() if p.name.startswith(".hydra")) == [".hydra"]  # nothing left aside
+    misspelt = run_py([*first, "+motion.n_framez=5"], tmp_path)  # refused by check_keys, before the folder is claimed
+    assert misspelt.returncode != 0 and "motion.n_framez" in misspelt.stderr
+    assert {p.name: p.read_bytes() for p in (out / ".hydra").iterdir()} == earlier
 
 
 def test_reference_adds_vertex_error(tmp_path, monkeypatch):
