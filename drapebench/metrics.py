@@ -152,7 +152,7 @@ def _null_unmeasured(summary: dict, n_evaluated: int) -> None:
     unmeasured = [k for k in ("jitter", "drift_mm") if np.isnan(summary[k])]
     if unmeasured:
         log.warning("%s not measured on %d evaluated frame(s): jitter needs a frame with both neighbours, drift_mm 10 frames "
-                    "(raise motion.n_frames, or set motion.transition to 0 to evaluate every frame); written as null",
+                    "(raise motion.n_frames, or set eval.skip_transition=false to evaluate the transition frames too); written as null",
                     " and ".join(unmeasured), n_evaluated)  # fmt: skip
         summary.update(dict.fromkeys(unmeasured))
 

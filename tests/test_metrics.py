@@ -87,6 +87,9 @@ def test_a_drape_too_short_for_jitter_and_drift_reports_them_as_null_not_nan(sph
         summary, _ = evaluate(garment, seq, body, pred, energies=False)
     assert summary["jitter"] is None and summary["drift_mm"] is None and summary["n_frames_evaluated"] == 1
     assert "jitter and drift_mm not measured on 1 evaluated frame(s)" in caplog.text and "motion.n_frames" in caplog.text
+    from drapebench.schema import EvalConf
+
+    assert "eval.skip_transition=false" in caplog.text and EvalConf().skip_transition  # the advice names a real key
     assert json.loads(json.dumps(summary, allow_nan=False)) == summary  # strict JSON: no NaN anywhere
     long_enough = BodySequence("still", "static", torch.zeros(1), torch.zeros(11, 1, 3), torch.zeros(11, 3), n_transition=1)
     summary, _ = evaluate(garment, long_enough, body, garment.vertices[None].repeat(11, 1, 1), energies=False)
