@@ -14,6 +14,7 @@ import json
 import math
 import platform
 import re
+import shlex
 import sys
 from datetime import datetime, timezone
 from pathlib import Path
@@ -179,7 +180,8 @@ def collect_unfinished(dirs) -> pd.DataFrame:
     """One row per Hydra job folder below ``dirs`` (its ``.hydra/overrides.yaml``) without ``metrics.json`` or
     ``failed.json``: a job interrupted (killed, out of memory, Ctrl-C) or still running. ``status`` "unfinished", its
     method, garment and motion (from its ``config.yaml``, else Hydra's), a ``message`` with the command that finishes it
-    (its overrides, into its own folder), and its ``run_dir``; an empty frame when there is none."""
+    (its overrides, shell-quoted, into its own folder as a single run: ``hydra.mode=RUN``, as an experiment's sweep sets
+    MULTIRUN), and its ``run_dir``; an empty frame when there is none."""
     from drapebench.garments import garment_label
 
     rows = []
@@ -189,11 +191,11 @@ def collect_unfinished(dirs) -> pd.DataFrame:
             continue
         conf = job / "config.yaml" if (job / "config.yaml").exists() else overrides.parent / "config.yaml"
         cfg = (yaml.safe_load(conf.read_text()) or {}) if conf.exists() else {}
-        given = " ".join(yaml.safe_load(overrides.read_text()) or [])
+        given = " ".join(shlex.quote(str(o)) for o in yaml.safe_load(overrides.read_text()) or [])
         rows.append({"status": "unfinished", "method": (cfg.get("method") or {}).get("name"), "garment": garment_label(cfg.get("garment") or {"kind": None}),
                      "motion": (cfg.get("motion") or {}).get("name"), "run_dir": str(job),
                      "message": f"no metrics.json or failed.json: the job was interrupted or is still running (its log: {job / 'run.log'}); "
-                                f"finish it with python run.py {given} hydra.run.dir={job} (a training resumes from its checkpoint)"})  # fmt: skip
+                                f"finish it with python run.py {given} {shlex.quote(f'hydra.run.dir={job}')} hydra.mode=RUN (a training resumes from its checkpoint)"})  # fmt: skip
     return pd.DataFrame(rows)
 
 

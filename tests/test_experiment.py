@@ -4,6 +4,7 @@ import json
 import logging
 import math
 import os
+import shlex
 import subprocess
 import sys
 from pathlib import Path
@@ -559,11 +560,19 @@ def test_an_interrupted_sweep_job_is_listed_unfinished_with_the_command_that_fin
     killed = sweep / "1"
     (killed / ".hydra").mkdir(parents=True)
     (killed / "config.yaml").write_text((sweep / "0" / "config.yaml").read_text().replace("name: walk", "name: kick"))
-    (killed / ".hydra" / "overrides.yaml").write_text("- motion=kick\n- viz=none\n")
+    given = ["experiment=gensim_pen", "motion=kick", "viz=none", "experiment_name=two words"]  # the sweep set MULTIRUN
+    (killed / ".hydra" / "overrides.yaml").write_text(yaml.safe_dump(given))
     summary = write_summary(sweep).read_text()
     rows = {line.split("|")[1].strip(): line for line in summary.splitlines() if line.startswith("| ") and "status" not in line}
     assert set(rows) == {"ok", "unfinished"} and "kick" in rows["unfinished"] and "walk" in rows["ok"]
-    assert f"finish it with python run.py motion=kick viz=none hydra.run.dir={killed}" in rows["unfinished"]
+    command = shlex.split(rows["unfinished"].split("finish it with ")[1].split(" (a training")[0])
+    assert command == ["python", "run.py", *given, f"hydra.run.dir={killed}", "hydra.mode=RUN"]
+    from drapebench.schema import register
+
+    register()
+    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
+        hydra_cfg = compose("config", overrides=command[2:], return_hydra_config=True).hydra
+    assert str(hydra_cfg.mode) == "RunMode.RUN" and hydra_cfg.run.dir == str(killed)  # one run, into the job's folder
 
 
 def test_viz_body_draws_another_body_while_collisions_follow_the_runs_body(tmp_path, monkeypatch, body_full, body_lowres):
