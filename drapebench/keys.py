@@ -49,7 +49,7 @@ def _fits(value, hint) -> bool:
     if hint is bool:
         return isinstance(value, bool)
     if hint is int:
-        return isinstance(value, int) and not isinstance(value, bool)
+        return isinstance(value, numbers.Integral) and not isinstance(value, bool)
     if hint is float:
         return is_number(value) and not math.isnan(value)
     if hint in (tuple, list) or origin in (tuple, list, Sequence):
@@ -71,8 +71,8 @@ def hint_of(default):
 
 
 def is_number(value) -> bool:
-    """Whether ``value`` is an int or a float (not a bool)."""
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
+    """Whether ``value`` is a real number: an int or a float, numpy's included (not a bool)."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
 
 def is_finite_number(value) -> bool:

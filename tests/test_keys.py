@@ -3,6 +3,7 @@ one check of a given value against its field's type."""
 
 import typing
 
+import numpy as np
 import pytest
 
 from drapebench.keys import check_known, check_type
@@ -66,6 +67,7 @@ def test_composing_a_config_imports_no_torch():
 @pytest.mark.parametrize("value, hint, message", [
     ("abc", int, r"^toy setting n must be an int, not 'abc' \(method.params.n=...\)$"),
     (True, int, "must be an int, not True"),  # a bool is not a count
+    (np.bool_(True), int, "must be an int, not"),  # numpy's neither
     (2.5, int, "must be an int, not 2.5"),
     (float("nan"), float, "must be a float, not nan"),
     ([1, "x"], tuple[int, ...], "must be a list of int values"),
@@ -84,7 +86,8 @@ def test_a_value_of_another_type_is_named_with_its_key_and_what_it_takes(value, 
 
 @pytest.mark.parametrize("value, hint", [(3, float), (2, int), (None, float | None), ([1, 2], tuple[int, ...]), ((1.0,), tuple[float, ...]),
                                          ("a", typing.Literal["a", "b"]), ({"k": 1}, dict), (False, bool), (float("inf"), float),
-                                         (object(), typing.Any), ([1, 2], list[int]), ((1,), typing.Sequence[int]), ({"a": 1}, typing.Mapping[str, int])])
+                                         (object(), typing.Any), ([1, 2], list[int]), ((1,), typing.Sequence[int]), ({"a": 1}, typing.Mapping[str, int]),
+                                         (np.int64(2), int), (np.float32(0.5), float), (np.int32(3), float)])  # numpy's numbers
 def test_a_value_of_its_type_passes(value, hint):
     check_type(value, hint, "toy setting", "n")
 

@@ -24,7 +24,6 @@ The seed varies amplitude (+-15 %), cadence (+-10 %) and phase; ``amplitude``, `
 
 from __future__ import annotations
 
-import math
 from functools import lru_cache
 
 import numpy as np

@@ -16,7 +16,6 @@ ease, length and sleeve slightly.
 
 from __future__ import annotations
 
-import math
 import pickle
 
 import numpy as np
