@@ -897,9 +897,10 @@ def write_summary(sweep_dir: Path) -> Path:
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description="Paper-style tables from run or sweep directories.")
     parser.add_argument("dirs", nargs="*", type=Path, help="run or sweep directories (searched for metrics.json)")
-    parser.add_argument("--table", default="baseline",
+    parser.add_argument("--table",
                         help="which table's spec (drapebench/table_specs.py, methods/<name>/tables.py, or the tables.py of a method the "
-                        "runs name by import path): its metrics, column groups, notes and plots")  # fmt: skip
+                        "runs name by import path): its metrics, column groups, notes and plots (default: the one table the runs' "
+                        "experiment makes; baseline for plain runs)")  # fmt: skip
     parser.add_argument("--methods", type=lambda s: [m for m in s.split(",") if m],
                         help="comma-separated methods to show, in this order (default: every method of the runs)")
     parser.add_argument("--garments", type=lambda s: [g for g in s.split(",") if g],
@@ -912,29 +913,86 @@ def main(argv=None) -> None:
     parser.add_argument("--claims", action="store_true",
                         help="instead: the claims scoreboard from the committed CSVs in reports/ (or the dirs given) to reports/claims.md (or --out.md)")
     args = parser.parse_args(argv)
+    try:
+        _main(args, parser)
+    except (FileNotFoundError, KeyError, ValueError) as e:  # a path or name the user typed: the message, not a traceback
+        parser.error(str(e.args[0] if e.args else e))
+
+
+def _main(args: argparse.Namespace, parser: argparse.ArgumentParser) -> None:
+    """What :func:`main` does with its parsed ``args`` (``parser`` reports a bad one)."""
     if args.claims:
         from drapebench.claims import write_claims
 
         reports = args.dirs[0] if args.dirs else PROJECT_ROOT / "reports"
+        if not reports.is_dir() or not any(reports.glob("*.csv")):
+            parser.error(f"--claims reads the committed tables (*.csv) of a folder; {reports} "
+                         f"{'holds none' if reports.is_dir() else 'is not a folder'} (default: {PROJECT_ROOT / 'reports'})")  # fmt: skip
         print(write_claims(reports, args.out.with_suffix(".md") if args.out else None))
         return
     if not args.dirs:
         parser.error("give the run or sweep directories to read (or --claims)")
+    missing = [str(d) for d in args.dirs if not d.is_dir()]
+    if missing:
+        parser.error(f"not a folder: {', '.join(missing)} (give run or sweep directories)")
     if args.evaluations:
         print(evaluation_plot(args.dirs, (args.out or default_out("evaluations")).with_suffix(".png")))
         return
     if args.loss_curves:
-        for csv in sorted(c for d in args.dirs for c in Path(d).rglob("losses.csv")):
+        if args.out:
+            parser.error("--out is not read with --loss-curves: each losses.png is written beside its losses.csv")
+        csvs = sorted(c for d in args.dirs for c in Path(d).rglob("losses.csv"))
+        if not csvs:
+            parser.error(f"no losses.csv below {', '.join(map(str, args.dirs))} (only runs that train write one)")
+        for csv in csvs:
             print(loss_curve_plot(csv))
         return
     for d in args.dirs:  # the runs' methods first: one outside the registry declares its tables in its package
         for f in _run_files(d, "metrics.json"):
             join_registry(f.parent)
     tables = sorted(n for n, t in specs().items() if t.metrics)
-    if args.table not in tables:
+    if args.table is not None and args.table not in tables:
         parser.error(f"argument --table: invalid choice: {args.table!r} (choose from {', '.join(tables)})")
-    for p in write_table(args.dirs, args.table, args.out or default_out(args.table), methods=args.methods, garments=args.garments):
+    table = table_for_runs(args.dirs, args.table, tables)
+    for p in write_table(args.dirs, table, args.out or default_out(table), methods=args.methods, garments=args.garments):
         print(p)
+
+
+def _recorded_experiments(sweep) -> list:
+    """The ``experiment`` names the runs of ``sweep`` (a :class:`drapebench.table_specs.Sweep`) record: its
+    ``experiment_name=`` override's values, else its experiment's name (each experiment config sets it so)."""
+    named = [o.partition("=")[2] for o in sweep.overrides if o.startswith("experiment_name=")]
+    return [n for o in named for n in o.split(",")] or [sweep.experiment]
+
+
+PLAIN_RUNS_TABLE = "baseline"  # the table of runs made without an experiment (``experiment: default``)
+
+
+def table_for_runs(dirs, table: str | None, tables: list) -> str:
+    """The table to write for the runs below ``dirs``: ``table`` when given (with a warning on stderr when no table
+    of that name is made by the runs' experiment: its columns may be empty), else the one table of ``tables`` whose
+    sweeps run the runs' recorded ``experiment`` (:data:`PLAIN_RUNS_TABLE` for plain runs); ValueError naming the
+    tables to choose from when there are several or none, or no run folder."""
+    from drapebench.table_specs import sweeps
+
+    made = {n: {name for s in sweeps(specs()[n]) for name in _recorded_experiments(s)} for n in tables}
+    found = {json.loads(f.read_text()).get("experiment", "default") for d in dirs for f in _run_files(Path(d), "metrics.json")}
+    if not found:
+        raise FileNotFoundError(f"no metrics.json below {', '.join(map(str, dirs))}; did the runs finish?")
+    experiments = found - {"default"}
+    candidates = sorted(n for n in tables if made[n] & experiments) if experiments else [PLAIN_RUNS_TABLE]
+    if table is not None:
+        if experiments and table not in candidates:
+            print(f"warning: table {table} is made by experiment {', '.join(sorted(made[table])) or '(a benchmark)'}; the runs are "
+                  f"from {', '.join(sorted(experiments))}"
+                  + (f" (tables made from them: {', '.join(candidates)})" if candidates else "") + ": its columns may be empty", file=sys.stderr)  # fmt: skip
+        return table
+    if len(candidates) != 1:
+        raise ValueError(f"the runs are from experiment {', '.join(sorted(experiments))}, which "
+                         + (f"tables {', '.join(candidates)} read" if candidates else "no table reads")
+                         + f": pass --table (choose from {', '.join(candidates or tables)})")  # fmt: skip
+    print(f"table: {candidates[0]} (the runs' experiment: {', '.join(sorted(found))})", file=sys.stderr)
+    return candidates[0]
 
 
 def default_out(table: str) -> Path:

@@ -1,3 +1,4 @@
+import json
 from pathlib import Path
 
 import numpy as np
@@ -716,3 +717,52 @@ def test_a_log_axis_labels_few_minor_ticks_where_they_would_crowd():
     ticks = [0.5, 0.6, 0.7, 0.8, 0.9, 2, 3, 4, 5, 6, 20, 30]
     assert [_minor_labels(20)(v, 0) for v in ticks] == ["0.5", "", "", "", "", "2", "3", "", "5", "", "20", "30"]
     assert _minor_labels(2)(0.7, 0) == "0.7" and _minor_labels(100)(2, 0) == ""
+
+
+def _runs_of(tmp_path, experiment: str) -> Path:
+    """A copy of the fixture runs that record ``experiment``."""
+    import shutil
+
+    runs = tmp_path / experiment
+    shutil.copytree(FIXTURES, runs)
+    for f in runs.rglob("metrics.json"):
+        f.write_text(json.dumps({**json.loads(f.read_text()), "experiment": experiment}))
+    return runs
+
+
+def test_the_report_command_writes_the_table_the_runs_experiment_makes(tmp_path, capsys):
+    from drapebench.report import main
+
+    main([str(_runs_of(tmp_path, "gensim_pen")), "--out", str(tmp_path / "pen")])  # no --table: the runs' experiment's
+    assert (tmp_path / "pen.md").read_text().startswith("# gensim_pen")
+    main([str(FIXTURES), "--out", str(tmp_path / "plain")])  # plain runs (no experiment): the baseline layout
+    assert (tmp_path / "plain.md").read_text().startswith("# baseline")
+    with pytest.raises(SystemExit):  # two tables read vae_table1's runs: the user chooses
+        main([str(_runs_of(tmp_path, "vae_table1")), "--out", str(tmp_path / "vae")])
+    err = capsys.readouterr().err
+    assert "pass --table" in err and "vae_table1_dress" in err and not (tmp_path / "vae.md").exists()
+    main([str(FIXTURES.parent / "runs"), "--table", "baseline", "--out", str(tmp_path / "b")])
+    assert "warning" not in capsys.readouterr().err
+    main([str(tmp_path / "gensim_pen"), "--table", "baseline", "--out", str(tmp_path / "mismatch")])
+    assert "warning: table baseline is made by experiment baseline; the runs are from gensim_pen" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv, says", [
+    (["{tmp}/nope"], "not a folder: {tmp}/nope"),
+    (["{fixtures}", "--table", "baseline", "--methods", "LBS"], "no run of method(s) LBS"),
+    (["{tmp}/empty"], "no metrics.json below {tmp}/empty"),
+    (["{tmp}/empty", "--loss-curves"], "no losses.csv below {tmp}/empty"),
+    (["{tmp}/empty", "--loss-curves", "--out", "{tmp}/x"], "--out is not read with --loss-curves"),
+    (["{fixtures}", "--evaluations", "--out", "{tmp}/x"], "no evaluations.csv in the runs below {fixtures}"),
+    (["--claims", "{tmp}/nope"], "--claims reads the committed tables (*.csv) of a folder; {tmp}/nope is not a folder"),
+    (["--claims", "{tmp}/empty"], "{tmp}/empty holds none"),
+])  # fmt: skip
+def test_the_report_command_stops_on_a_path_or_name_it_cannot_read_with_a_message(tmp_path, capsys, argv, says):
+    from drapebench.report import main
+
+    (tmp_path / "empty").mkdir()
+    fill = {"tmp": str(tmp_path), "fixtures": str(FIXTURES)}
+    with pytest.raises(SystemExit) as stop:
+        main([a.format(**fill) for a in argv])
+    assert stop.value.code == 2 and says.format(**fill) in capsys.readouterr().err  # argparse's usage error, not a traceback
+    assert not (tmp_path / "nope").exists() and sorted(p.name for p in tmp_path.iterdir()) == ["empty"]  # nothing written
