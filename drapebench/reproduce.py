@@ -527,6 +527,9 @@ def main(argv=None) -> int:
     base = PROJECT_ROOT / "outputs" / ("reproduce_quick" if args.quick else "reproduce")
     root = args.runs or (base / "runs" if args.quick else base)
     out = args.out or (base / "reports" if args.quick else PROJECT_ROOT / "reports")
+    files = [f"--{flag} {path}" for flag, path in (("out", out), ("runs", root), ("archive", args.archive)) if path and path.exists() and not path.is_dir()]
+    if files:  # found now, not after hours of runs
+        parser.error(f"{', '.join(files)}: a file, where a folder is needed; give a folder (it is made if missing)")
     if args.quick and out.resolve() == (PROJECT_ROOT / "reports").resolve():
         parser.error("--quick --out reports: quick tables are untrained 8-frame checks of the pipeline, not results, and would "
                      "replace the committed tables and claims.md; leave --out out or name another folder")

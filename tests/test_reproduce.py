@@ -140,6 +140,16 @@ def test_bad_arguments_are_refused_before_anything_runs_or_is_written(argv, said
     assert said in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("flag", ["--out", "--runs", "--archive"])
+def test_a_file_where_a_folder_is_needed_is_refused_before_any_run(tmp_path, flag, capsys):
+    """--out a file failed only when the tables were written, after every run."""
+    (tmp_path / "afile").write_text("mine\n")
+    with pytest.raises(SystemExit):
+        main(["--tables", "baseline", "--dry-run", "--runs", str(tmp_path / "runs"), flag, str(tmp_path / "afile")])
+    assert f"{flag} {tmp_path / 'afile'}: a file, where a folder is needed" in capsys.readouterr().err
+    assert (tmp_path / "afile").read_text() == "mine\n"
+
+
 def test_a_table_with_runs_missing_is_not_written(tmp_path, monkeypatch):
     """A cell averaged over fewer scenes than planned would change silently: the committed table stays instead."""
     monkeypatch.setattr(reproduce, "commit", lambda: "0" * 40)
