@@ -142,7 +142,9 @@ def build_reference_set(garment, body, material, spec: ReferenceSetSpec, n_jobs:
     manifest_path = MANIFESTS.path(garment.name, paths, prefix=f"{garment.name}_{spec.name}", suffix=".json")
     manifest = None if force else MANIFESTS.load(manifest_path, lambda p: json.loads(Path(p).read_text()))
     failed = {f["sequence"]: f for f in (manifest or {}).get("failed", [])}
-    n_jobs = int(n_jobs or spec.n_jobs)
+    n_jobs = int(spec.n_jobs if n_jobs is None else n_jobs)
+    if n_jobs < 1:  # 0 was read as "the preset's", a negative number reached joblib as "every core but ..."
+        raise ValueError(f"n_jobs: at least 1 worker process, got {n_jobs} (None: the preset's {spec.n_jobs})")
     threads = max(1, (os.cpu_count() or 1) // n_jobs) if n_jobs > 1 else None
     done: dict[str, dict] = {}
     seqs = list(planned)  # per place in the plan: the planned sequence or its latest replacement
@@ -228,7 +230,7 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description="Build the reference drapes of a garment (training data of supervised methods).")
     parser.add_argument("--garment", default="tshirt", help="garment kind (conf/garment), made on --body with default parameters")
     parser.add_argument("--body", default="anny", help="body the garment is made for and draped on (conf/body)")
-    parser.add_argument("--data", default="cpu", help="preset in conf/data (cpu, paper)")
+    parser.add_argument("--data", default="cpu", help="preset in conf/data (cpu, paper, quick)")
     parser.add_argument("--material", default="cotton", help="material preset (conf/material)")
     parser.add_argument("--jobs", type=int, default=None, help="worker processes (default: the preset's n_jobs)")
     parser.add_argument("--force", action="store_true", help="simulate every sequence again, failed ones included")
@@ -237,10 +239,20 @@ def main(argv=None) -> None:
     from drapebench.garments import make_garment
     from drapebench.physics import Material
 
-    body = load_body(args.body)
-    garment = make_garment(args.garment, body)
-    refs = build_reference_set(garment, body, Material.preset(args.material), ReferenceSetSpec.preset(args.data), args.jobs,
-                               force=args.force)  # fmt: skip
+    if args.jobs is not None and args.jobs < 1:
+        parser.error(f"--jobs: at least 1 worker process, got {args.jobs} (leave it out for the preset's)")
+    flag = "--data"  # the cheap checks first: a typo is found before the garment is made
+    try:
+        spec = ReferenceSetSpec.preset(args.data)
+        flag = "--material"
+        material = Material.preset(args.material)
+        flag = "--body"
+        body = load_body(args.body)
+        flag = "--garment"
+        garment = make_garment(args.garment, body)
+    except (FileNotFoundError, KeyError, ValueError) as err:
+        parser.error(f"{flag} {getattr(args, flag[2:])}: {err.args[0] if err.args else err}")
+    refs = build_reference_set(garment, body, material, spec, args.jobs, force=args.force)
     print(refs.summary())
     for f in refs.failed:
         print(f"  failed {f['sequence']}: {f['cause']}")

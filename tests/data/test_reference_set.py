@@ -148,3 +148,26 @@ def test_a_failed_sequence_is_replaced_by_a_new_draw_of_its_motion_and_each_fail
     assert len(one_try) == 3 and [f["sequence"] for f in one_try.failed] == ["train_random_001", "train_random_001_r1"]
     with pytest.raises(ValueError, match="data.replace_failed must be >= 0"):
         ReferenceSetSpec(replace_failed=-1)
+
+
+@pytest.mark.parametrize("argv, says", [
+    (["--jobs", "0"], "--jobs: at least 1 worker process, got 0"),  # was read as the preset's
+    (["--jobs", "-2"], "--jobs: at least 1 worker process, got -2"),  # joblib's "every core but one"
+    (["--data", "paperr", "--garment", "tshrt"], "--data paperr: unknown reference set preset 'paperr'"),  # before the garment
+    (["--material", "coton"], "--material coton: unknown material 'coton'"),
+    (["--body", "annny"], "--body annny: body 'annny' is neither a shipped body"),
+    (["--garment", "tshrt", "--body", "anny_lowres"], "--garment tshrt: unknown garment kind 'tshrt'"),
+])  # fmt: skip
+def test_the_build_command_refuses_a_bad_argument_before_any_simulation(argv, says, capsys, monkeypatch):
+    from drapebench.data import reference_set
+
+    monkeypatch.setattr(reference_set, "build_reference_set", lambda *a, **k: pytest.fail("simulated on a bad argument"))
+    with pytest.raises(SystemExit) as stop:
+        reference_set.main(argv)
+    assert stop.value.code == 2 and says in capsys.readouterr().err
+
+
+def test_a_build_with_no_worker_process_is_refused(garment, body_lowres, fake_run):
+    with pytest.raises(ValueError, match="n_jobs: at least 1 worker process, got 0"):
+        build_reference_set(garment, body_lowres, Material(), SPEC, n_jobs=0, progress=False)
+    assert fake_run == []
