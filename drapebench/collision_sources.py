@@ -58,7 +58,10 @@ def main(argv=None) -> None:
     from drapebench.trained_run import load_run
 
     for run_dir in args.runs:
-        run = load_run(run_dir)
+        try:
+            run = load_run(run_dir)
+        except (FileNotFoundError, ValueError) as err:  # not a run's folder, or its model no longer cached
+            parser.error(str(err))
         with torch.inference_mode():
             result = run.method.drape(run.garment, run.seq)
         n = result.vertices.shape[0]

@@ -27,11 +27,16 @@ def load_run(run_dir: str | Path, device: str | torch.device | None = None) -> T
     relative checkpoint path (an archived run's) is read under :func:`drapebench.cache.data_dir`. Raises
     FileNotFoundError when the run's checkpoint is no longer in the cache, and ValueError when the checkpoint there
     is another model than the run's (trained again since, at another commit or for another time: the cache keeps
-    one model per configuration); rerun the run to get its model back."""
+    one model per configuration); rerun the run to get its model back. FileNotFoundError too when ``run_dir`` is
+    not a finished run's folder."""
     from drapebench.cache import data_dir
     from drapebench.experiment import method_class
 
     run_dir = Path(run_dir)
+    missing = [f for f in ("config.yaml", "metrics.json") if not (run_dir / f).is_file()]
+    if missing:
+        raise FileNotFoundError(f"{run_dir} has no {' or '.join(missing)}: give a finished run's folder"
+                                + (" (a sweep's runs are its job folders)" if run_dir.is_dir() else ""))  # fmt: skip
     cfg = OmegaConf.load(run_dir / "config.yaml")
     metrics = json.loads((run_dir / "metrics.json").read_text())
     ckpt = metrics.get("checkpoint")

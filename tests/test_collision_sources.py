@@ -1,5 +1,6 @@
 """drapebench.collision_sources: the inside vertices of a drape split by the drape's extras."""
 
+import pytest
 import torch
 
 from drapebench.collision_sources import collision_sources
@@ -27,3 +28,17 @@ def test_inside_vertices_are_split_by_mask_and_by_stage(body_lowres):
     assert abs(mask["share"] - 75.0) < 1.0 and abs(mask["eps_c"] - 100 / 3) < 3.0 and abs(mask["share_of_inside"] - 50.0) < 3.0
     median, _, deepest = found["depth_mm"]
     assert 4.0 < median < 5.5 and deepest < 20.0
+
+
+@pytest.mark.parametrize("what", ["missing", "empty", "file"])
+def test_the_command_stops_on_a_folder_that_is_not_a_run_s_with_a_message(tmp_path, what, capsys):
+    from drapebench.collision_sources import main
+
+    path = tmp_path / "x"
+    if what == "empty":
+        path.mkdir()
+    elif what == "file":
+        path.write_text("")
+    with pytest.raises(SystemExit) as stop:
+        main([str(path)])
+    assert stop.value.code == 2 and f"{path} has no config.yaml or metrics.json: give a finished run's folder" in capsys.readouterr().err
