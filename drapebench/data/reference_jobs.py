@@ -22,6 +22,7 @@ import sys
 from pathlib import Path
 
 import hydra
+from hydra.errors import HydraException
 from omegaconf import DictConfig, OmegaConf
 
 from drapebench.cache import PROJECT_ROOT, write_json
@@ -71,6 +72,14 @@ def plan(overrides: list[str]):
     return (*scene(cfg), bool(cfg.force))
 
 
+def composition_error(err: Exception) -> str:
+    """``err``'s message for the user: Hydra's own (its config search path left out) and, where Hydra gives only the
+    override it could not apply, the first line of the cause (e.g. "Key 'n_jbs' is not in struct")."""
+    text = str(err.args[0] if isinstance(err, KeyError) and err.args else err).split("\nConfig search path:")[0].rstrip()
+    cause = str(err.__cause__ or "").splitlines()
+    return text + (f" ({cause[0].strip()})" if cause else "")
+
+
 def main(argv: list[str] | None = None) -> int:
     """Submit the sequences left to simulate (module docstring); returns 0 when every planned sequence has a drape or a
     recorded failure, 1 when some have neither (a job that was killed or crashed: run the command again)."""
@@ -83,7 +92,10 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if "sequence" in {a.split("=")[0].lstrip("+") for a in argv}:
         raise SystemExit("reference_jobs sets sequence= itself (the sequences left to simulate); drop it from the command")
-    garment, body, material, spec, force = plan(argv)
+    try:
+        garment, body, material, spec, force = plan(argv)
+    except (HydraException, KeyError, ValueError, FileNotFoundError) as err:  # an override it cannot compose or a scene it cannot make
+        raise SystemExit(f"reference_jobs: {composition_error(err)}") from None
     refs, missing = collect_reference_set(garment, body, material, spec)
     todo = list(range(len(refs.planned))) if force else [refs.planned.index(s) for s in missing]
     print(f"reference set {spec.name} ({garment.name}): {len(refs.planned)} sequences planned, {len(refs)} done, "

@@ -45,3 +45,16 @@ def test_a_reference_set_builds_as_one_submitit_job_per_sequence_and_resumes_aft
     assert kept.stat().st_mtime_ns == kept_mtime  # the finished sequence was not simulated again
     p = _build(tmp_path / "third")
     assert p.returncode == 0 and "2 done, 0 failed, 0 to simulate" in p.stdout and not (tmp_path / "third").exists()
+
+
+@pytest.mark.parametrize("override, says", [
+    ("data=paperr", "reference_jobs: In 'reference_jobs': Could not find 'data/paperr'\n\nAvailable options in 'data':"),
+    ("data.n_jbs=2", "Could not override 'data.n_jbs'.\nTo append to your config use +data.n_jbs=2 (Key 'n_jbs' is not in struct)"),
+])  # fmt: skip
+def test_an_override_it_cannot_compose_stops_with_hydra_s_message_not_a_traceback(override, says):
+    from drapebench.data.reference_jobs import main
+
+    with pytest.raises(SystemExit) as stop:
+        main([override])
+    assert str(stop.value.code).startswith("reference_jobs: ") and says in str(stop.value.code)
+    assert "Config search path" not in str(stop.value.code)
