@@ -182,3 +182,18 @@ def test_no_run_is_called_unplanned_while_uncommitted_code_may_change_the_plan(t
         monkeypatch.setattr(results, "uncommitted_code", lambda root=None, s=scratch: [s])
         assert unplanned(tmp_path) is None
     assert plan(["baseline"], tmp_path)  # planning itself is unaffected
+
+
+@pytest.mark.parametrize("runs, archive, says", [
+    ("afile", "archive", "runs {tmp}/afile: a file; give the runs folder"),
+    ("nope", "archive", "runs {tmp}/nope: no such folder"),
+    ("runs", "afile", "archive {tmp}/afile: a file; give the archive's folder"),
+])  # fmt: skip
+def test_the_sync_command_refuses_a_file_or_a_missing_runs_folder(tmp_path, runs, archive, says, capsys):
+    from drapebench.run_archive import main
+
+    (tmp_path / "runs").mkdir()
+    (tmp_path / "afile").write_text("mine\n")
+    with pytest.raises(SystemExit):
+        main([str(tmp_path / runs), str(tmp_path / archive)])
+    assert says.format(tmp=tmp_path) in capsys.readouterr().err and (tmp_path / "afile").read_text() == "mine\n"

@@ -45,6 +45,10 @@ def compile_kernels() -> float:
 
 
 if __name__ == "__main__":
+    import argparse
+
+    argparse.ArgumentParser(description="Compile the reference simulator's warp kernels once per environment "
+                            "(about a minute on 2 cores; cached in data/cache/warp). Takes no arguments.").parse_args()  # fmt: skip
     print("== compiling the warp kernels of the reference simulator (once per environment, about a minute "
           "on 2 cores; cached in data/cache/warp)", flush=True)  # fmt: skip
     print(f"== kernels ready in {compile_kernels():.0f} s", flush=True)
