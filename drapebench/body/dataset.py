@@ -197,6 +197,9 @@ def main(argv=None) -> None:
         for name, spec in DATASETS.items():
             print(f"{name:20s} {len(spec.motions) * spec.per_motion:4d} sequences x {spec.n_frames} frames  {', '.join(spec.motions)}")
         return
+    unknown = [n for n in args.names if n not in DATASETS]  # all checked before any is built
+    if unknown:
+        parser.error(f"unknown dataset {', '.join(map(repr, unknown))}; known datasets: {', '.join(DATASETS)}")
     for name in args.names:
         _, spec = _resolve(name)
         fresh = not args.force and _is_current(dataset_path(name), spec.hash())

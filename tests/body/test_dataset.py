@@ -101,3 +101,11 @@ def test_random_motion_presets_leave_the_named_training_sets_alone():
         assert spec.per_motion == len(named.motions) * named.per_motion and spec.n_frames == named.n_frames
         betas = [b for *_, b in sequence_plan(spec)]
         assert len({tuple(b.tolist()) for b in betas}) == len(betas)  # a random body shape per sequence
+
+
+def test_the_build_command_checks_every_name_before_building_any(monkeypatch, capsys):
+    name = next(iter(ds.DATASETS))
+    monkeypatch.setattr(ds, "build_dataset", lambda *a, **k: pytest.fail("built before every name was checked"))
+    with pytest.raises(SystemExit) as stop:
+        ds.main([name, "trian"])
+    assert stop.value.code == 2 and "unknown dataset 'trian'; known datasets:" in capsys.readouterr().err
