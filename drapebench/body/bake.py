@@ -283,6 +283,9 @@ def main(argv=None) -> None:
     parser.add_argument("--samples", type=int, default=N_SAMPLES, help="number of sampled phenotypes")
     parser.add_argument("--betas", type=int, default=N_BETAS, help="number of PCA shape components")
     args = parser.parse_args(argv)
+    if args.betas < 1 or args.samples <= args.betas:  # the PCA of N samples has at most N - 1 components that vary
+        parser.error(f"--samples {args.samples} --betas {args.betas}: need 1 <= betas < samples "
+                     f"(defaults: --samples {N_SAMPLES} --betas {N_BETAS})")  # fmt: skip
     report = bake(args.out, args.samples, args.betas)
     print(json.dumps(report, indent=2))
 

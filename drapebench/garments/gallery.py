@@ -88,6 +88,12 @@ def main(argv=None) -> None:
     parser.add_argument("--body", default="anny", help="body name (anny, anny_lowres) or SMPL-format file")
     parser.add_argument("--garments", nargs="*", help="subset of the garment configs (conf/garment)")
     args = parser.parse_args(argv)
+    if args.garments == []:
+        parser.error("--garments: name at least one garment config, or leave --garments out for all of them")
+    try:
+        garment_configs(args.garments)  # the names checked before the body is loaded
+    except ValueError as err:
+        parser.error(f"--garments: {err}")
     print(render_gallery(args.out, args.body, args.garments))
 
 

@@ -108,6 +108,19 @@ def test_the_gallery_draws_every_garment_config():
     assert list(configs).index("skirt") < list(configs).index("skirt_flared") < list(configs).index("dress")
 
 
+@pytest.mark.parametrize("argv, says", [
+    (["--garments"], "--garments: name at least one garment config"),  # was matplotlib's "cannot write empty image"
+    (["--garments", "tshrt"], "--garments: no garment config ['tshrt']; configs: dress, gown"),
+])  # fmt: skip
+def test_the_gallery_command_refuses_no_or_unknown_garments_before_drawing(argv, says, tmp_path, capsys, monkeypatch):
+    from drapebench.garments import gallery
+
+    monkeypatch.setattr(gallery, "render_gallery", lambda *a, **k: pytest.fail("drew on a bad argument"))
+    with pytest.raises(SystemExit) as stop:
+        gallery.main([*argv, "--out", str(tmp_path / "g.png")])
+    assert stop.value.code == 2 and says in capsys.readouterr().err and not (tmp_path / "g.png").exists()
+
+
 def test_keep_component_near_ignores_vertices_no_face_uses():
     from drapebench.garments.mesh_ops import keep_component_near
 
