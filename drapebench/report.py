@@ -667,7 +667,8 @@ def metric_bars_plot(df: pd.DataFrame, metrics: list[str], path: Path, title: st
                 x = i + (j - (len(garments) - 1) / 2) * width
                 ax.bar(x, mean, width * 0.9, yerr=None if np.isnan(std) else std, color=f"C{j}", capsize=3,
                        label=garment if i == 0 else None)  # fmt: skip
-                ax.plot([x] * len(g), g.groupby(seed_ids(g))[m].mean(), "k.", ms=3)
+                per_seed = g.groupby(seed_ids(g))[m].mean()  # a dot per seed, the runs of one seed averaged
+                ax.plot([x] * len(per_seed), per_seed, "k.", ms=3)
         info = metric_info(m)
         ax.set_xticks(range(len(methods)), methods, rotation=30, ha="right", fontsize=8)
         ax.set_ylabel(f"{info.label}", fontsize=9)
@@ -791,7 +792,7 @@ def only_methods(df: pd.DataFrame, methods: list[str] | None, failed: frozenset 
         return df
     missing = [m for m in methods if m not in set(df["method"]) | failed]
     if missing:
-        raise ValueError(f"no run of method(s) {', '.join(missing)} in the given directories; the runs have: {', '.join(dict.fromkeys(df['method']))}")
+        raise SelectionError(f"no run of method(s) {', '.join(missing)} in the given directories; the runs have: {', '.join(dict.fromkeys(df['method']))}")
     order = {m: i for i, m in enumerate(methods)}
     return df[df["method"].isin(order)].sort_values("method", key=lambda c: c.map(order), kind="stable")
 
@@ -803,7 +804,7 @@ def only_garments(df: pd.DataFrame, garments: list[str] | None) -> pd.DataFrame:
         return df
     missing = [g for g in garments if g not in set(df["garment"])]
     if missing:
-        raise ValueError(f"no run of garment(s) {', '.join(missing)} in the given directories; the runs have: {', '.join(dict.fromkeys(df['garment']))}")
+        raise SelectionError(f"no run of garment(s) {', '.join(missing)} in the given directories; the runs have: {', '.join(dict.fromkeys(df['garment']))}")
     return df[df["garment"].isin(garments)]
 
 
@@ -869,7 +870,7 @@ def gpu_out(out: Path, df: pd.DataFrame) -> Path:
     if on_gpu and not out.name.endswith("_gpu"):
         return out.with_name(f"{out.name}_gpu")
     if not on_gpu and any(d.startswith("cuda") for d in devices):
-        raise ValueError(f"the runs mix devices ({', '.join(sorted(devices))}): make a table of the CPU runs and one of the GPU runs")
+        raise SelectionError(f"the runs mix devices ({', '.join(sorted(devices))}): make a table of the CPU runs and one of the GPU runs")
     return out
 
 
@@ -894,6 +895,11 @@ def write_summary(sweep_dir: Path) -> Path:
     return Path(sweep_dir) / "summary.md"
 
 
+class SelectionError(ValueError):
+    """What the user asked of the runs (methods, garments, a table) that the runs cannot give: :func:`main` prints
+    its message as a usage error; any other ValueError is a bug and keeps its traceback."""
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description="Paper-style tables from run or sweep directories.")
     parser.add_argument("dirs", nargs="*", type=Path, help="run or sweep directories (searched for metrics.json)")
@@ -915,7 +921,7 @@ def main(argv=None) -> None:
     args = parser.parse_args(argv)
     try:
         _main(args, parser)
-    except (FileNotFoundError, KeyError, ValueError) as e:  # a path or name the user typed: the message, not a traceback
+    except (FileNotFoundError, KeyError, SelectionError) as e:  # a path or name the user typed: the message, not a traceback
         parser.error(str(e.args[0] if e.args else e))
 
 
@@ -971,11 +977,12 @@ PLAIN_RUNS_TABLE = "baseline"  # the table of runs made without an experiment (`
 def table_for_runs(dirs, table: str | None, tables: list) -> str:
     """The table to write for the runs below ``dirs``: ``table`` when given (with a warning on stderr when no table
     of that name is made by the runs' experiment: its columns may be empty), else the one table of ``tables`` whose
-    sweeps run the runs' recorded ``experiment`` (:data:`PLAIN_RUNS_TABLE` for plain runs); ValueError naming the
-    tables to choose from when there are several or none, or no run folder."""
+    sweeps run the runs' recorded ``experiment`` (the name or the experiment config; :data:`PLAIN_RUNS_TABLE` for
+    plain runs and for an experiment no table reads, said on stderr); :class:`SelectionError` naming the tables to
+    choose from when there are several, FileNotFoundError without runs."""
     from drapebench.table_specs import sweeps
 
-    made = {n: {name for s in sweeps(specs()[n]) for name in _recorded_experiments(s)} for n in tables}
+    made = {n: {name for s in sweeps(specs()[n]) for name in (s.experiment, *_recorded_experiments(s))} for n in tables}
     found = {json.loads(f.read_text()).get("experiment", "default") for d in dirs for f in _run_files(Path(d), "metrics.json")}
     if not found:
         raise FileNotFoundError(f"no metrics.json below {', '.join(map(str, dirs))}; did the runs finish?")
@@ -987,12 +994,13 @@ def table_for_runs(dirs, table: str | None, tables: list) -> str:
                   f"from {', '.join(sorted(experiments))}"
                   + (f" (tables made from them: {', '.join(candidates)})" if candidates else "") + ": its columns may be empty", file=sys.stderr)  # fmt: skip
         return table
-    if len(candidates) != 1:
-        raise ValueError(f"the runs are from experiment {', '.join(sorted(experiments))}, which "
-                         + (f"tables {', '.join(candidates)} read" if candidates else "no table reads")
-                         + f": pass --table (choose from {', '.join(candidates or tables)})")  # fmt: skip
-    print(f"table: {candidates[0]} (the runs' experiment: {', '.join(sorted(found))})", file=sys.stderr)
-    return candidates[0]
+    if len(candidates) > 1:
+        raise SelectionError(f"the runs are from experiment {', '.join(sorted(experiments))}, which tables {', '.join(candidates)} "
+                             f"read: pass --table (choose from {', '.join(candidates)})")  # fmt: skip
+    chosen = candidates[0] if candidates else PLAIN_RUNS_TABLE
+    print(f"table: {chosen} (the runs' experiment: {', '.join(sorted(found))}"
+          + ("" if candidates else f", which no table reads: the plain runs' layout; --table chooses another") + ")", file=sys.stderr)  # fmt: skip
+    return chosen
 
 
 def default_out(table: str) -> Path:

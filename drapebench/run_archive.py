@@ -185,10 +185,9 @@ def main(argv=None) -> int:
         if at is None:
             parser.error(f"--commit {args.commit}: not a commit of this repository (its runs would never match); "
                          "give the regeneration's commit, e.g. from `git log --oneline`")
-    if not args.runs.is_dir():  # a file or a typo synced "0 runs" and said nothing was wrong
-        parser.error(f"runs {args.runs}: {'a file' if args.runs.exists() else 'no such folder'}; give the runs folder")
-    if args.archive.exists() and not args.archive.is_dir():  # a new archive folder is made by the first sync
-        parser.error(f"archive {args.archive}: a file; give the archive's folder (made if missing)")
+    for name, path in (("runs", args.runs), ("archive", args.archive)):  # a missing one is made (a new machine's runs folder)
+        if path.exists() and not path.is_dir():  # a file synced "0 runs" and said nothing was wrong
+            parser.error(f"{name} {path}: a file; give the {name} folder (made if missing)")
     recorded, restored = sync(args.runs, args.archive, at)
     print(f"archive {args.archive}: {restored} runs restored into {args.runs}, {recorded} recorded from it")
     return 0

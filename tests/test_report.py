@@ -747,6 +747,30 @@ def test_the_report_command_writes_the_table_the_runs_experiment_makes(tmp_path,
     assert "warning" not in capsys.readouterr().err
     main([str(tmp_path / "gensim_pen"), "--table", "baseline", "--out", str(tmp_path / "mismatch")])
     assert "warning: table baseline is made by experiment baseline; the runs are from gensim_pen" in capsys.readouterr().err
+    main([str(_runs_of(tmp_path, "smoke")), "--out", str(tmp_path / "smoke")])  # an experiment no table reads
+    assert (tmp_path / "smoke.md").read_text().startswith("# baseline") and "which no table reads" in capsys.readouterr().err
+    main([str(_runs_of(tmp_path, "gensim_table1")), "--out", str(tmp_path / "t1")])  # the config's name, its sweeps rename
+    assert (tmp_path / "t1.md").read_text().startswith("# gensim_table1")
+
+
+def test_a_bug_behind_the_report_command_keeps_its_traceback(monkeypatch):
+    """Only what the user asked of the runs is a usage error; a ValueError from the code is not disguised as one."""
+    import drapebench.report as report
+
+    monkeypatch.setattr(report, "write_table", lambda *a, **k: np.zeros(2) + np.zeros(3))
+    with pytest.raises(ValueError, match="broadcast"):
+        report.main([str(FIXTURES), "--table", "baseline"])
+
+
+def test_the_bars_plot_draws_a_dot_per_seed_when_a_scene_s_runs_repeat(tmp_path):
+    """The same scene and seed given twice (a sweep and its rerun) made the dots' x and y differ in length."""
+    import shutil
+
+    from drapebench.report import main
+
+    shutil.copytree(FIXTURES, tmp_path / "again")
+    main([str(FIXTURES), str(tmp_path / "again"), "--table", "gensim_fig10", "--out", str(tmp_path / "t")])
+    assert (tmp_path / "t.md").exists()
 
 
 @pytest.mark.parametrize("argv, says", [

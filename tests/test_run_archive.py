@@ -186,10 +186,9 @@ def test_no_run_is_called_unplanned_while_uncommitted_code_may_change_the_plan(t
 
 @pytest.mark.parametrize("runs, archive, says", [
     ("afile", "archive", "runs {tmp}/afile: a file; give the runs folder"),
-    ("nope", "archive", "runs {tmp}/nope: no such folder"),
-    ("runs", "afile", "archive {tmp}/afile: a file; give the archive's folder"),
+    ("runs", "afile", "archive {tmp}/afile: a file; give the archive folder"),
 ])  # fmt: skip
-def test_the_sync_command_refuses_a_file_or_a_missing_runs_folder(tmp_path, runs, archive, says, capsys):
+def test_the_sync_command_refuses_a_file_for_a_folder(tmp_path, runs, archive, says, capsys):
     from drapebench.run_archive import main
 
     (tmp_path / "runs").mkdir()
@@ -197,3 +196,12 @@ def test_the_sync_command_refuses_a_file_or_a_missing_runs_folder(tmp_path, runs
     with pytest.raises(SystemExit):
         main([str(tmp_path / runs), str(tmp_path / archive)])
     assert says.format(tmp=tmp_path) in capsys.readouterr().err and (tmp_path / "afile").read_text() == "mine\n"
+
+
+def test_the_sync_command_restores_into_a_runs_folder_a_new_machine_lacks(tmp_path):
+    from drapebench.run_archive import main
+
+    _run(tmp_path / "old_runs", "t/0/0_x", ["method=lbs"])
+    assert main([str(tmp_path / "old_runs"), str(tmp_path / "archive")]) == 0  # recorded
+    assert main([str(tmp_path / "new_runs"), str(tmp_path / "archive")]) == 0  # the folder is made and the run restored
+    assert (tmp_path / "new_runs" / "t/0/0_x" / "metrics.json").exists()
