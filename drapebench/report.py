@@ -953,13 +953,17 @@ def _main(args: argparse.Namespace, parser: argparse.ArgumentParser) -> None:
         for csv in csvs:
             print(loss_curve_plot(csv))
         return
-    for d in args.dirs:  # the runs' methods first: one outside the registry declares its tables in its package
+    experiments = set()  # the runs' recorded experiments, and their methods first: one outside the registry declares its tables in its package
+    for d in args.dirs:
         for f in _run_files(d, "metrics.json"):
             join_registry(f.parent)
+            experiments.add(json.loads(f.read_text()).get("experiment", "default"))
+    if not experiments:
+        raise FileNotFoundError(f"no metrics.json below {', '.join(map(str, args.dirs))}; did the runs finish?")
     tables = sorted(n for n, t in specs().items() if t.metrics)
     if args.table is not None and args.table not in tables:
         parser.error(f"argument --table: invalid choice: {args.table!r} (choose from {', '.join(tables)})")
-    table = table_for_runs(args.dirs, args.table, tables)
+    table = table_for_runs(experiments, args.table, tables)
     for p in write_table(args.dirs, table, args.out or default_out(table), methods=args.methods, garments=args.garments):
         print(p)
 
@@ -974,18 +978,15 @@ def _recorded_experiments(sweep) -> list:
 PLAIN_RUNS_TABLE = "baseline"  # the table of runs made without an experiment (``experiment: default``)
 
 
-def table_for_runs(dirs, table: str | None, tables: list) -> str:
-    """The table to write for the runs below ``dirs``: ``table`` when given (with a warning on stderr when no table
-    of that name is made by the runs' experiment: its columns may be empty), else the one table of ``tables`` whose
-    sweeps run the runs' recorded ``experiment`` (the name or the experiment config; :data:`PLAIN_RUNS_TABLE` for
-    plain runs and for an experiment no table reads, said on stderr); :class:`SelectionError` naming the tables to
-    choose from when there are several, FileNotFoundError without runs."""
+def table_for_runs(found: set, table: str | None, tables: list) -> str:
+    """The table to write for runs that recorded the ``experiment`` names ``found``: ``table`` when given (with a
+    warning on stderr when no table of that name is made by the runs' experiment: its columns may be empty), else the
+    one table of ``tables`` whose sweeps run that experiment (the name or the experiment config;
+    :data:`PLAIN_RUNS_TABLE` for plain runs and for an experiment no table reads, said on stderr);
+    :class:`SelectionError` naming the tables to choose from when there are several."""
     from drapebench.table_specs import sweeps
 
     made = {n: {name for s in sweeps(specs()[n]) for name in (s.experiment, *_recorded_experiments(s))} for n in tables}
-    found = {json.loads(f.read_text()).get("experiment", "default") for d in dirs for f in _run_files(Path(d), "metrics.json")}
-    if not found:
-        raise FileNotFoundError(f"no metrics.json below {', '.join(map(str, dirs))}; did the runs finish?")
     experiments = found - {"default"}
     candidates = sorted(n for n in tables if made[n] & experiments) if experiments else [PLAIN_RUNS_TABLE]
     if table is not None:
